@@ -1,0 +1,1 @@
+"""The simulated world: plant models, friction, sensors, sampling (frictiongym.envs)."""

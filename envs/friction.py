@@ -1,0 +1,152 @@
+"""Friction parameters and their checks.
+
+LuGre (seed 000 §1.4.6, eq. 1-3): ż = v - σ0·|v|·z/g(v), g(v) = Fc + (Fs - Fc)·exp(-(v/vs)²),
+F = σ0·z + σ1·ż + σ2·v. MuJoCo's dcmotor LuGre element is symmetric; direction-dependent levels
+(all three documents have them) are built as symmetric LuGre plus a constant bias torque b
+(a dcmotor cogging term with 0 poles), so the friction torque on the joint is -F + b:
+
+    sliding v > 0:  -(g(v) + σ2·v) + b     static limit  +direction: Fs - b
+    sliding v < 0:  +(g(v) - σ2·v) + b     static limit  -direction: Fs + b
+
+Exact: Coulomb and static levels of both directions when their Stribeck drops are equal
+(Fs+ - Fc+ = Fs- - Fc-); otherwise the static levels are kept exact and each Coulomb level is off by
+half the difference of the drops. Not exact: viscous slopes must be equal in both directions, and at
+rest the bias is balanced by the bristles, which shifts the presliding equilibrium by b/σ0 (rad).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+from .config import ConfigError, nonneg, positive
+
+FRICTION_MODELS = ("lugre", "coulomb", "viscous", "none")
+
+
+@dataclass(frozen=True)
+class LuGreParams:
+    """Symmetric LuGre parameters (SI, per joint) plus a constant bias torque for asymmetry.
+
+    fc, fs: Coulomb and static levels (N·m); vs: Stribeck velocity (rad/s); sigma0: bristle stiffness
+    (N·m/rad); sigma1: bristle damping (N·m·s/rad); sigma2: viscous coefficient (N·m·s/rad);
+    bias: constant torque (N·m), positive helps positive motion.
+    """
+
+    fc: float
+    fs: float
+    vs: float
+    sigma0: float
+    sigma1: float
+    sigma2: float
+    bias: float = 0.0
+
+    @classmethod
+    def from_levels(
+        cls,
+        fc_pos: float,
+        fc_neg: float,
+        fs_pos: float,
+        fs_neg: float,
+        vs: float,
+        sigma0: float,
+        sigma1: float,
+        sigma2: float,
+    ) -> LuGreParams:
+        """Build from direction-dependent magnitudes (N·m); static levels are reproduced exactly."""
+        fs = 0.5 * (fs_pos + fs_neg)
+        bias = 0.5 * (fs_neg - fs_pos)
+        drop = 0.5 * ((fs_pos - fc_pos) + (fs_neg - fc_neg))
+        return cls(fc=fs - drop, fs=fs, vs=vs, sigma0=sigma0, sigma1=sigma1, sigma2=sigma2, bias=bias)
+
+    def levels(self) -> dict[str, float]:
+        """Implied magnitudes of the Coulomb and static levels in each direction (N·m)."""
+        return {
+            "coulomb_pos": self.fc - self.bias,
+            "coulomb_neg": self.fc + self.bias,
+            "static_pos": self.fs - self.bias,
+            "static_neg": self.fs + self.bias,
+        }
+
+    def steady_state(self, v: float) -> float:
+        """Steady sliding friction torque on the joint at velocity v (rad/s), v != 0 (N·m)."""
+        g = self.fc + (self.fs - self.fc) * math.exp(-((v / self.vs) ** 2))
+        return -(math.copysign(g, v) + self.sigma2 * v) + self.bias
+
+    def scaled(
+        self,
+        level: float = 1.0,
+        sigma0: float = 1.0,
+        vs: float = 1.0,
+        viscous: float = 1.0,
+        extra_bias: float = 0.0,
+    ) -> LuGreParams:
+        """A copy with levels (fc, fs, bias) scaled, σ0 scaled (σ1 by sqrt, constant damping ratio)."""
+        return replace(
+            self,
+            fc=self.fc * level,
+            fs=self.fs * level,
+            bias=self.bias * level + extra_bias,
+            sigma0=self.sigma0 * sigma0,
+            sigma1=self.sigma1 * math.sqrt(sigma0),
+            vs=self.vs * vs,
+            sigma2=self.sigma2 * viscous,
+        )
+
+    def validate(self, field: str) -> None:
+        """Reject unphysical values, naming the field."""
+        positive(self.fc, f"{field}.fc")
+        positive(self.vs, f"{field}.vs")
+        positive(self.sigma0, f"{field}.sigma0")  # σ0 = 0 at runtime is fatal in MuJoCo's dcmotor
+        nonneg(self.sigma1, f"{field}.sigma1")
+        nonneg(self.sigma2, f"{field}.sigma2")
+        if not math.isfinite(self.fs) or self.fs < self.fc:
+            raise ConfigError(
+                f"{field}.fs", f"static level {self.fs} must be finite and >= Coulomb {self.fc}"
+            )
+        if not math.isfinite(self.bias) or abs(self.bias) >= self.fc:
+            raise ConfigError(
+                f"{field}.bias",
+                f"|bias| {abs(self.bias)} must be < the symmetric Coulomb "
+                f"level {self.fc} (both directions must keep positive friction)",
+            )
+
+
+# Admissible region of the integrators for the bristle dynamics (docs/physics.md, "Numerics").
+# Euler/RK4 are explicit in the bristle force: the bristle spring-damper (σ0, σ1) on the joint
+# inertia J must be resolved, h·sqrt(σ0/J) <= 0.2 and h·σ1/J <= 0.5 (Euler diverges near 2;
+# validated against Radau within 2 % inside this region). The implicit integrators treat σ1 as a
+# damping derivative, which acts like an extra inertia h·σ1 while sliding: they are accepted only
+# where that is below 1 % of J.
+EXPLICIT_LIMITS = {"h_omega": 0.2, "h_sigma1_over_J": 0.5}
+IMPLICIT_LIMIT_H_SIGMA1_OVER_J = 0.01
+
+
+def check_numerics(p: LuGreParams, inertia: float, timestep: float, integrator: str, field: str) -> None:
+    """Reject (σ0, σ1, J, h, integrator) combinations outside the stable and accurate region."""
+    h_omega = timestep * math.sqrt(p.sigma0 / inertia)
+    h_s1 = timestep * p.sigma1 / inertia
+    if integrator in ("Euler", "RK4"):
+        if h_omega > EXPLICIT_LIMITS["h_omega"]:
+            raise ConfigError(
+                f"{field}.sigma0",
+                f"h·sqrt(σ0/J) = {h_omega:.3g} > {EXPLICIT_LIMITS['h_omega']} "
+                f"(σ0={p.sigma0:g}, J={inertia:g}, h={timestep:g}): reduce σ0 or the timestep",
+            )
+        if h_s1 > EXPLICIT_LIMITS["h_sigma1_over_J"]:
+            raise ConfigError(
+                f"{field}.sigma1",
+                f"h·σ1/J = {h_s1:.3g} > {EXPLICIT_LIMITS['h_sigma1_over_J']} "
+                f"(σ1={p.sigma1:g}, J={inertia:g}, h={timestep:g}): reduce σ1 or the timestep",
+            )
+    elif integrator in ("implicit", "implicitfast"):
+        if h_s1 > IMPLICIT_LIMIT_H_SIGMA1_OVER_J:
+            raise ConfigError(
+                f"{field}.sigma1",
+                f"{integrator}: h·σ1/J = {h_s1:.3g} > "
+                f"{IMPLICIT_LIMIT_H_SIGMA1_OVER_J} adds > 1 % inertia while sliding",
+            )
+    else:
+        raise ConfigError(
+            "sampling.integrator", f"{integrator!r} not in ['Euler', 'RK4', 'implicit', 'implicitfast']"
+        )

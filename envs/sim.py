@@ -1,0 +1,114 @@
+"""Sampled-data simulation of one plant: ZOH command over the control period, actuation delay from
+MuJoCo's actuator history buffer (resolution: one physics step), sensors read at the sampling instants."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from .config import ConfigError
+from .params import EpisodeParams, ModelIndex, apply
+from .plants import PlantSpec, plant_spec, to_mjcf
+from .sensors import measure_all
+
+
+@dataclass
+class StepResult:
+    """What a digital controller sees after one control period, plus ground truth."""
+
+    measurement: np.ndarray  # sensor readings in spec.sensors order (rad or V)
+    qpos: np.ndarray  # true joint angles (rad)
+    qvel: np.ndarray  # true joint velocities (rad/s)
+    diverged: bool
+
+
+class PlantSim:
+    """One compiled plant. Parameters change per episode via reset(params) without recompiling.
+
+    Call step(u) once per control period: u (command units: V or N·m) is written to the drive's
+    ctrl and held for spec.substeps physics steps; with delay τ the drive acts on it from t_k + τ.
+    """
+
+    def __init__(self, spec: PlantSpec | str, overrides: dict | None = None, friction_model: str = "lugre"):
+        self.spec = plant_spec(spec, overrides, friction_model) if isinstance(spec, str) else spec
+        self.model = mujoco.MjModel.from_xml_string(to_mjcf(self.spec))
+        self.data = mujoco.MjData(self.model)
+        self.idx = ModelIndex.of(self.model, self.spec)
+        self.params = EpisodeParams.nominal(self.spec)
+        self.rng = np.random.default_rng(0)
+        apply(self.model, self.data, self.spec, self.idx, self.params)
+
+    @property
+    def dofs(self) -> tuple[int, ...]:
+        return self.idx.dofs
+
+    def reset(
+        self,
+        params: EpisodeParams | None = None,
+        qpos: np.ndarray | None = None,
+        qvel: np.ndarray | None = None,
+        seed: int | None = None,
+    ) -> StepResult:
+        """Reset state (bristles, history buffer, time) and optionally parameters and initial state.
+
+        For belt-coupled plants pass the drive angle/velocity only (qpos of length 1): the others follow
+        the belt ratios.
+        """
+        if params is not None:
+            apply(self.model, self.data, self.spec, self.idx, params)
+            self.params = params
+        if seed is not None:
+            self.rng = np.random.default_rng(seed)
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[:] = self._expand(qpos)
+        self.data.qvel[:] = self._expand(qvel)
+        mujoco.mj_forward(self.model, self.data)
+        return self._result()
+
+    def _expand(self, x: np.ndarray | None) -> np.ndarray:
+        nv = self.model.nv
+        if x is None:
+            return np.zeros(nv)
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        if x.shape == (nv,):
+            return x
+        if x.shape == (1,) and self.spec.belts:
+            ratios = self.spec.kinematic_ratios()
+            return np.array([x[0] * ratios[j.name] for j in self.spec.joints])
+        raise ConfigError("initial state", f"expected {nv} values (or 1 for a belt drive), got {x.shape}")
+
+    def step(self, u: float, nstep: int | None = None) -> StepResult:
+        """Hold command u for one control period (or nstep physics steps); read the sensors at the end."""
+        if not np.isfinite(u):
+            raise ValueError(f"command must be finite, got {u!r}")
+        self.data.ctrl[self.idx.drive_ctrl] = u
+        mujoco.mj_step(self.model, self.data, nstep or self.spec.substeps)
+        return self._result()
+
+    def _result(self) -> StepResult:
+        d = self.data
+        diverged = bool(
+            not np.all(np.isfinite(d.qpos))
+            or not np.all(np.isfinite(d.qvel))
+            or d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
+        )
+        meas = measure_all(self.spec, d.qpos, d.qvel, self.dofs, self.rng, self.params.noise_scale)
+        return StepResult(meas, d.qpos[list(self.dofs)].copy(), d.qvel[list(self.dofs)].copy(), diverged)
+
+    def friction_torque(self) -> np.ndarray:
+        """Current friction torque on each frictional joint (N·m): LuGre/bias actuator + its σ2 damping."""
+        d, m = self.data, self.model
+        out = []
+        for a in self.idx.friction:
+            dof = int(m.jnt_dofadr[m.actuator_trnid[a, 0]])
+            out.append(d.actuator_force[a] - m.actuator_damping[a] * d.qvel[dof])
+        return np.array(out)
+
+    def bristle_state(self) -> np.ndarray:
+        """LuGre bristle deflections z (rad), one per frictional joint (empty unless friction_model=lugre)."""
+        m = self.model
+        return np.array(
+            [self.data.act[m.actuator_actadr[a]] for a in self.idx.friction if m.actuator_actnum[a] > 0]
+        )
