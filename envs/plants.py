@@ -463,7 +463,8 @@ def to_mjcf(spec: PlantSpec) -> str:
             f'<body name="{j.name}" pos="{x} 0 0"><joint name="{j.name}" type="hinge" axis="0 0 1" '
             f'armature="{j.inertia!r}" damping="{j.viscous!r}" frictionloss="{fl!r}"/>'
             f'<geom type="cylinder" size="0.08 0.01" mass="1e-6" rgba="0.6 0.6 0.7 1"/>'
-            f'<geom type="box" pos="0.05 0 0.012" size="0.03 0.005 0.002" mass="1e-6" rgba="0.9 0.3 0.2 1"/></body>'
+            f'<geom type="box" pos="0.05 0 0.012" size="0.03 0.005 0.002" mass="1e-6" '
+            f'rgba="0.9 0.3 0.2 1"/></body>'
         )
     actuators.append(
         f'<motor name="drive" joint="{spec.actuator_joint}" gear="{spec.actuator_gain!r}" ctrllimited="true" '
@@ -485,7 +486,8 @@ def to_mjcf(spec: PlantSpec) -> str:
         )
     if spec.rate_feedback > 0 or spec.name == "kang_robot":
         actuators.append(
-            f'<velocity name="rate_feedback" joint="{spec.actuator_joint}" kv="{max(spec.rate_feedback, 1e-12)!r}"/>'
+            f'<velocity name="rate_feedback" joint="{spec.actuator_joint}" '
+            f'kv="{max(spec.rate_feedback, 1e-12)!r}"/>'
         )
     for b in spec.belts:
         extra.append(

@@ -12,7 +12,8 @@ def measure(
     sensor: SensorSpec, theta: float, omega: float, rng: np.random.Generator, noise_scale: float
 ) -> float:
     """One reading. Encoder: angle in rad, floor-quantised to the resolution (an incremental counter
-    counts whole lines passed), noise added before quantisation. Tacho: gain·ω + ripple·sin(n·θ) + noise (V)."""
+    counts whole lines passed), noise added before quantisation.
+    Tacho: gain·ω + ripple·sin(n·θ) + noise (V)."""
     noise = (
         float(rng.normal(0.0, sensor.noise_std * noise_scale)) if sensor.noise_std * noise_scale > 0 else 0.0
     )

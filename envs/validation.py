@@ -54,7 +54,7 @@ def lugre_ode(
 
 def ode_friction(p: LuGreParams, y: np.ndarray) -> np.ndarray:
     """Friction torque on the joint (N·m) along an ODE solution y = (θ, ω, z)."""
-    th, v, z = y
+    _, v, z = y
     g = p.fc + (p.fs - p.fc) * np.exp(-((v / p.vs) ** 2))
     zd = v - p.sigma0 * np.abs(v) * z / g
     return -(p.sigma0 * z + p.sigma1 * zd + p.sigma2 * v) + p.bias
@@ -109,7 +109,9 @@ class Rig:
 
 
 def breakaway(spec: PlantSpec, joint: str, direction: int, duration: float = 2.0) -> dict[str, float]:
-    """Peak friction torque magnitude under a slow torque ramp 0 -> 1.5·F_s (direction ±1)."""
+    """Breakaway torque under a slow torque ramp 0 -> 1.5·F_s (direction ±1): the peak friction
+    magnitude while the joint is still presliding (|ω| <= v_s), so the viscous part after the slip
+    is not counted."""
     p = spec.joints[spec.joint_index(joint)].friction
     rate = direction * 1.5 * (p.fs + abs(p.bias)) / duration
     rig = Rig(spec, joint)

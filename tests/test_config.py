@@ -1,0 +1,62 @@
+"""Config loading and validation: every bad value is rejected with an error naming the field."""
+
+import math
+
+import pytest
+from frictiongym.envs import units
+from frictiongym.envs.config import ConfigError, load_yaml, plant_names
+from frictiongym.envs.params import EpisodeParams
+from frictiongym.envs.plants import plant_spec
+
+
+def test_presets_listed_and_load():
+    assert plant_names() == ["flexible_servo", "kang_robot", "m220"]
+    for name in plant_names():
+        assert plant_spec(name).name == name
+
+
+def test_yaml_reads_exponent_without_sign_as_float():
+    # kang_robot.yaml writes σ0 as 1.0e5, which YAML 1.1 would read as a string
+    assert load_yaml("kang_robot")["friction"]["sigma0_nm_per_rad"] == 1.0e5
+
+
+@pytest.mark.parametrize(
+    ("plant", "overrides", "field"),
+    [
+        ("kang_robot", {"rotor": {"inertia_nm_s2_per_deg": -0.0212}}, "rotor.inertia_nm_s2_per_deg"),
+        ("kang_robot", {"friction": {"static_pos_nm": float("nan")}}, "friction.static_pos_nm"),
+        ("kang_robot", {"friction": {"sigma0_nm_per_rad": 0.0}}, "friction.sigma0_nm_per_rad"),
+        ("kang_robot", {"rotor": {"inertia": 1.0}}, "rotor.inertia"),  # unknown key
+        ("kang_robot", {"sampling": {"control_period_s": 0.0203}}, "sampling.control_period_s"),
+        ("flexible_servo", {"shafts": {"J1_kg_m2": "heavy"}}, "shafts.J1_kg_m2"),
+        ("m220", {"configuration": {"n_pd": 20}}, "configuration.n_pd"),
+        ("m220", {"configuration": {"brass_weights_load": 5}}, "configuration.brass_weights_load"),
+        ("m220", {"viscous": {"source": "guess"}}, "viscous.source"),
+        ("m220", {"randomization": {"friction_scale": [1.2, 0.8]}}, "randomization.friction_scale"),
+    ],
+)
+def test_bad_values_name_the_field(plant, overrides, field):
+    with pytest.raises(ConfigError) as e:
+        plant_spec(plant, overrides)
+    assert e.value.field == field
+
+
+def test_static_below_coulomb_rejected():
+    spec = plant_spec("kang_robot")
+    p = EpisodeParams.nominal(spec)
+    bad = p.friction[0].__class__(**{**p.friction[0].__dict__, "fs": 0.5 * p.friction[0].fc})
+    with pytest.raises(ConfigError, match=r"params.friction\[rotor\].fs"):
+        EpisodeParams(**{**p.__dict__, "friction": (bad,)}).validate(spec)
+
+
+def test_unknown_friction_model_rejected():
+    with pytest.raises(ConfigError, match="friction_model"):
+        plant_spec("kang_robot", friction_model="stribeck-only")
+
+
+def test_unit_helpers_round_trip():
+    assert units.rad_to_deg(units.deg_to_rad(6.97)) == pytest.approx(6.97)
+    assert units.rad_per_count(16000) == pytest.approx(math.radians(0.0225))  # seed 000 conversion table
+    assert units.counts_to_rad(units.rad_to_counts(1.2, 16000), 16000) == pytest.approx(1.2)
+    # Kang's J = 0.0212 N·m·s²/deg is 1.2147 kg·m²
+    assert units.per_deg_to_per_rad(0.0212) == pytest.approx(1.21467, rel=1e-4)

@@ -1,0 +1,55 @@
+"""The command-line front ends run and write what they promise."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).parents[1]
+REQUIRED = [
+    "m220.reflected_inertia.default",
+    "m220.step_id.a",
+    "m220.step_id.k",
+    "flexible.G1.1Hz.lin.mag",
+    "flexible.G2.10Hz.sine.phase_deg",
+    "kang.theta_H_deg",
+    "kang.theta_L_deg",
+    "friction.breakaway.kang_robot.pos",
+    "friction.breakaway.m220.neg",
+    "friction.sliding.m220.-5vs",
+    "friction.presliding.flexible_servo",
+    "friction.stickslip_period",
+]
+
+
+def test_reproduce_writes_passing_report(tmp_path):
+    out = tmp_path / "rep"
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "scripts/reproduce.py"), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    rows = json.loads((out / "report.json").read_text())
+    ids = {r["id"] for r in rows}
+    assert set(REQUIRED) <= ids
+    assert all(set(r) >= {"id", "document", "simulated", "tolerance", "pass"} for r in rows)
+    assert all(r["pass"] for r in rows)
+    assert (out / "report.md").read_text().startswith("# frictiongym reproduction report")
+    assert (out / "m220_step.png").stat().st_size > 10_000 and (
+        out / "flexible_bode.png"
+    ).stat().st_size > 10_000
+
+
+def test_bench_physics_prints_a_ratio_per_plant():
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "scripts/bench_physics.py"), "--seconds", "0.2"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.strip().splitlines()[1:]
+    assert {ln.split()[0] for ln in lines} == {"kang_robot", "flexible_servo", "m220"}
+    assert all(0.1 < float(ln.split()[-1]) < 10 for ln in lines)
