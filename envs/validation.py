@@ -117,9 +117,11 @@ def breakaway(spec: PlantSpec, joint: str, direction: int, duration: float = 2.0
     rig = Rig(spec, joint)
     sim = rig.run(lambda t, th: rate * t, duration)
     ode = lugre_ode(p, rig.J, lambda t, th: rate * t, duration)
+    stick_sim = np.abs(sim["omega"]) <= p.vs
+    stick_ode = np.abs(ode.y[1]) <= p.vs
     return {
-        "simulated": float(np.max(np.abs(sim["friction"]))),
-        "reference": float(np.max(np.abs(ode_friction(p, ode.y)))),
+        "simulated": float(np.max(np.abs(sim["friction"][stick_sim]))),
+        "reference": float(np.max(np.abs(ode_friction(p, ode.y)[stick_ode]))),
     }
 
 
