@@ -21,7 +21,8 @@ class EpisodeParams:
     friction: LuGre parameters per frictional joint (friction_joints order); inertia, viscous: per
     joint (kg·m², N·m·s/rad); spring_stiffness/damping per spring; actuator_gain (N·m per command
     unit); rate_feedback (N·m·s/rad); delay (s, snapped to the physics timestep); noise_scale
-    multiplies the preset's sensor noise levels.
+    multiplies the preset's sensor noise levels; jitter (s): each control period's command acts
+    after delay + j, j drawn uniformly on the timestep grid in [0, jitter] (PlantSim.step).
     """
 
     friction: tuple[LuGreParams, ...]
@@ -33,6 +34,7 @@ class EpisodeParams:
     rate_feedback: float
     delay: float
     noise_scale: float = 1.0
+    jitter: float = 0.0
 
     @classmethod
     def nominal(cls, spec: PlantSpec) -> EpisodeParams:
@@ -46,6 +48,7 @@ class EpisodeParams:
             actuator_gain=spec.actuator_gain,
             rate_feedback=spec.rate_feedback,
             delay=spec.delay,
+            jitter=spec.jitter,
         )
 
     @classmethod
@@ -86,6 +89,7 @@ class EpisodeParams:
             spring_stiffness=tuple(x * spring_scale for x in base.spring_stiffness),
             delay=delay,
             noise_scale=noise,
+            jitter=u("jitter_s", spec.jitter),  # drawn last: earlier draws keep their values
         )
 
     def validate(self, spec: PlantSpec) -> None:
@@ -104,6 +108,7 @@ class EpisodeParams:
         positive(self.actuator_gain, "params.actuator_gain")
         nonneg(self.rate_feedback, "params.rate_feedback")
         number(self.delay, "params.delay", 0.0, spec.control_period)
+        number(self.jitter, "params.jitter", 0.0, spec.control_period - self.delay)
         nonneg(self.noise_scale, "params.noise_scale")
         scaled = spec_with(spec, self)
         for name, p in zip(names, self.friction, strict=True):
@@ -120,6 +125,10 @@ class EpisodeParams:
     def delay_steps(self, spec: PlantSpec) -> int:
         """Actuation delay in whole physics steps (the delay is resolved to the timestep grid)."""
         return round(self.delay / spec.timestep)
+
+    def jitter_steps(self, spec: PlantSpec) -> int:
+        """Largest extra delay from jitter, in whole physics steps (rounded down)."""
+        return int(self.jitter / spec.timestep + 1e-9)
 
 
 def spec_with(spec: PlantSpec, p: EpisodeParams) -> PlantSpec:

@@ -15,7 +15,7 @@ from typing import Any
 
 from . import units
 from .config import ConfigError, interval, load_yaml, merge, nonneg, number, positive
-from .friction import FRICTION_MODELS, LuGreParams
+from .friction import FRICTION_MODELS, LuGreParams, check_numerics
 
 
 @dataclass(frozen=True)
@@ -78,6 +78,7 @@ class PlantSpec:
     integrator: str
     control_period: float  # s
     delay: float  # s, actuation delay
+    jitter: float  # s, extra per-period actuation delay, uniform in [0, jitter] on the dt grid
     friction_model: str
     belts: tuple[BeltSpec, ...] = ()
     springs: tuple[SpringSpec, ...] = ()
@@ -126,7 +127,14 @@ def _sampling(cfg: dict, section: str = "sampling") -> dict[str, Any]:
             f"{section}.control_period_s", f"{period} must be a whole multiple of timestep {dt}"
         )
     delay = number(s.get("delay_s", 0.0), f"{section}.delay_s", 0.0, period)
-    return {"timestep": dt, "control_period": period, "delay": delay, "integrator": s["integrator"]}
+    jitter = number(s.get("jitter_s", 0.0), f"{section}.jitter_s", 0.0, period - delay)
+    return {
+        "timestep": dt,
+        "control_period": period,
+        "delay": delay,
+        "jitter": jitter,
+        "integrator": s["integrator"],
+    }
 
 
 def _randomization(cfg: dict) -> dict[str, tuple[float, float]]:
@@ -427,6 +435,17 @@ def plant_spec(name: str, overrides: dict | None = None, friction_model: str = "
     if builder is None:
         raise ConfigError("plant", f"{cfg.get('plant')!r} not in {sorted(_BUILDERS)}")
     spec = builder(cfg, friction_model)
+    for j in spec.joints:
+        if j.friction is not None:
+            j.friction.validate(f"friction[{j.name}]")
+            if friction_model == "lugre":
+                check_numerics(
+                    j.friction,
+                    spec.reflected_inertia(j.name),
+                    spec.timestep,
+                    spec.integrator,
+                    f"friction[{j.name}]",
+                )
     if friction_model != "lugre":
         spec = replace(spec, joints=tuple(_strip(j, friction_model) for j in spec.joints))
     return spec

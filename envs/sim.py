@@ -37,7 +37,7 @@ class PlantSim:
         self.data = mujoco.MjData(self.model)
         self.idx = ModelIndex.of(self.model, self.spec)
         self.params = EpisodeParams.nominal(self.spec)
-        self.rng = np.random.default_rng(0)
+        self._seed(0)
         apply(self.model, self.data, self.spec, self.idx, self.params)
 
     @property
@@ -60,12 +60,17 @@ class PlantSim:
             apply(self.model, self.data, self.spec, self.idx, params)
             self.params = params
         if seed is not None:
-            self.rng = np.random.default_rng(seed)
+            self._seed(seed)
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[:] = self._expand(qpos)
         self.data.qvel[:] = self._expand(qvel)
         mujoco.mj_forward(self.model, self.data)
         return self._result()
+
+    def _seed(self, seed: int) -> None:
+        """Independent streams for sensor noise and delay jitter, both from the episode seed."""
+        noise, jitter = np.random.SeedSequence(seed).spawn(2)
+        self.rng, self.jitter_rng = np.random.default_rng(noise), np.random.default_rng(jitter)
 
     def _expand(self, x: np.ndarray | None) -> np.ndarray:
         nv = self.model.nv
@@ -84,6 +89,12 @@ class PlantSim:
         if not np.isfinite(u):
             raise ValueError(f"command must be finite, got {u!r}")
         self.data.ctrl[self.idx.drive_ctrl] = u
+        jmax = self.params.jitter_steps(self.spec)
+        if jmax:
+            j = int(self.jitter_rng.integers(0, jmax + 1))
+            self.model.actuator_delay[self.idx.drive] = (
+                self.params.delay_steps(self.spec) + j
+            ) * self.spec.timestep
         mujoco.mj_step(self.model, self.data, nstep or self.spec.substeps)
         return self._result()
 

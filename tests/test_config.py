@@ -49,6 +49,20 @@ def test_static_below_coulomb_rejected():
         EpisodeParams(**{**p.__dict__, "friction": (bad,)}).validate(spec)
 
 
+@pytest.mark.parametrize(
+    ("overrides", "field"),
+    [
+        ({"friction": {"sigma0_nm_per_rad": 1.0e7}}, "friction[rotor].sigma0"),  # h·ω_b = 1.4
+        ({"sampling": {"integrator": "implicitfast"}}, "friction[rotor].sigma1"),  # extra inertia
+        ({"friction": {"static_pos_nm": 1.0, "static_neg_nm": 0.9}}, "friction[rotor].fs"),  # below Coulomb
+    ],
+)
+def test_config_load_rejects_friction_outside_the_admissible_region(overrides, field):
+    with pytest.raises(ConfigError) as e:
+        plant_spec("kang_robot", overrides)
+    assert e.value.field == field
+
+
 def test_unknown_friction_model_rejected():
     with pytest.raises(ConfigError, match="friction_model"):
         plant_spec("kang_robot", friction_model="stribeck-only")

@@ -128,3 +128,31 @@ def test_analog_rate_feedback_acts_at_physics_rate():
     sim.reset(qvel=[1.0])
     r = sim.step(0.0, nstep=200)  # 0.1 s, no command
     assert r.qvel[0] == pytest.approx(np.exp(-kd * 0.1 / J), rel=0.01)
+
+
+def test_jitter_delays_each_command_by_tau_plus_a_seeded_draw():
+    sim = PlantSim("kang_robot")
+    h, n = sim.spec.timestep, sim.spec.substeps
+    p = EpisodeParams(**{**EpisodeParams.nominal(sim.spec).__dict__, "delay": 2 * h, "jitter": 3 * h})
+
+    def onsets(seed):
+        sim.reset(p, seed=seed)
+        out, last = [], 0.0
+        for k in range(12):
+            t_k = sim.data.time
+            u = 0.5 * (k + 1)  # distinct and inside the ±10 N·m limit
+            for s in range(n):
+                if s == 0:
+                    sim.step(u, nstep=1)
+                else:
+                    mujoco.mj_step(sim.model, sim.data)
+                if sim.data.actuator_force[sim.idx.drive] != last:
+                    last = sim.data.actuator_force[sim.idx.drive]
+                    out.append(round((sim.data.time - h - t_k) / h))
+        return out
+
+    a = onsets(5)
+    assert a == onsets(5)  # same seed, same jitter
+    assert len(a) == 12 and set(a) <= {2, 3, 4, 5}  # τ + j, j in [0, 3] steps
+    assert len(set(a)) > 1  # it does vary
+    assert a != onsets(6)
