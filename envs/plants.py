@@ -13,6 +13,8 @@ import math
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+import numpy as np
+
 from . import units
 from .config import ConfigError, interval, load_yaml, merge, nonneg, number, positive
 from .friction import FRICTION_MODELS, LuGreParams, check_numerics
@@ -102,6 +104,20 @@ class PlantSpec:
         for b in self.belts:
             ratios[b.driven] = b.ratio * ratios[b.driver]
         return ratios
+
+    def full_state(self, x: np.ndarray | list | None) -> np.ndarray:
+        """Per-joint values from x: all joints, or the first joint only for a belt drive (the others follow
+        the belt ratios). None gives zeros."""
+        n = len(self.joints)
+        if x is None:
+            return np.zeros(n)
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        if x.shape == (n,):
+            return x
+        if x.shape == (1,) and self.belts:
+            ratios = self.kinematic_ratios()
+            return np.array([x[0] * ratios[j.name] for j in self.joints])
+        raise ConfigError("initial state", f"expected {n} values (or 1 for a belt drive), got {x.shape}")
 
     def reflected_inertia(self, joint: str | None = None) -> float:
         """Inertia seen at `joint` (default: first) of the belt-coupled chain, kg·m² (cf. seed 000 eq. 22)."""

@@ -1,43 +1,57 @@
 """Sensor models sampled at the control instants: encoder quantisation, tachometer gain and ripple,
-additive Gaussian noise (seeded). Inputs are true joint angles/velocities (rad, rad/s)."""
+additive Gaussian noise (seeded). Vectorised over a leading axis of simulations."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from .plants import PlantSpec, SensorSpec
+from .plants import PlantSpec
 
 
-def measure(
-    sensor: SensorSpec, theta: float, omega: float, rng: np.random.Generator, noise_scale: float
-) -> float:
-    """One reading. Encoder: angle in rad, floor-quantised to the resolution (an incremental counter
-    counts whole lines passed), noise added before quantisation.
-    Tacho: gain·ω + ripple·sin(n·θ) + noise (V)."""
-    noise = (
-        float(rng.normal(0.0, sensor.noise_std * noise_scale)) if sensor.noise_std * noise_scale > 0 else 0.0
-    )
-    if sensor.kind == "encoder":
-        return float(np.floor((theta + noise) / sensor.resolution) * sensor.resolution)
-    ripple = (
-        sensor.ripple_amplitude * np.sin(sensor.ripple_periods_per_rad * theta)
-        if sensor.ripple_amplitude
-        else 0.0
-    )
-    return float(sensor.gain * omega + ripple + noise)
+@dataclass(frozen=True)
+class SensorArrays:
+    """The plant's sensors as arrays (one entry per sensor, spec order)."""
 
+    dofs: np.ndarray  # dof index read by each sensor
+    encoder: np.ndarray  # bool: encoder (else tachometer)
+    resolution: np.ndarray  # rad (encoders)
+    gain: np.ndarray  # V per rad/s (tachometers)
+    ripple_n: np.ndarray  # ripple periods per rad
+    ripple_amp: np.ndarray  # V
+    noise_std: np.ndarray  # rad or V
 
-def measure_all(
-    spec: PlantSpec,
-    qpos: np.ndarray,
-    qvel: np.ndarray,
-    dofs: tuple[int, ...],
-    rng: np.random.Generator,
-    noise_scale: float,
-) -> np.ndarray:
-    """All sensors of the plant, in spec order."""
-    out = np.empty(len(spec.sensors))
-    for k, s in enumerate(spec.sensors):
-        d = dofs[spec.joint_index(s.joint)]
-        out[k] = measure(s, float(qpos[d]), float(qvel[d]), rng, noise_scale)
-    return out
+    @classmethod
+    def of(cls, spec: PlantSpec, dofs: tuple[int, ...]) -> SensorArrays:
+        s = spec.sensors
+        return cls(
+            dofs=np.array([dofs[spec.joint_index(x.joint)] for x in s], dtype=int),
+            encoder=np.array([x.kind == "encoder" for x in s]),
+            resolution=np.array([x.resolution if x.kind == "encoder" else 1.0 for x in s]),
+            gain=np.array([x.gain for x in s]),
+            ripple_n=np.array([x.ripple_periods_per_rad for x in s]),
+            ripple_amp=np.array([x.ripple_amplitude for x in s]),
+            noise_std=np.array([x.noise_std for x in s]),
+        )
+
+    def noise(self, rngs: list[np.random.Generator], scale: np.ndarray) -> np.ndarray:
+        """(n, nsensor) noise; each simulation draws from its own stream, only when its noise is on."""
+        out = np.zeros((len(rngs), len(self.dofs)))
+        for i, rng in enumerate(rngs):
+            std = self.noise_std * scale[i]
+            if np.any(std > 0):
+                out[i] = rng.normal(0.0, 1.0, len(std)) * std
+        return out
+
+    def measure(self, qpos: np.ndarray, qvel: np.ndarray, noise: np.ndarray) -> np.ndarray:
+        """(n, nsensor) readings. Encoder: floor((θ + noise)/resolution)·resolution (an incremental counter
+        counts whole lines passed). Tacho: gain·ω + ripple·sin(n·θ) + noise (V)."""
+        th, om = qpos[:, self.dofs], qvel[:, self.dofs]
+        enc = np.floor((th + noise) / self.resolution) * self.resolution
+        tacho = self.gain * om + self.ripple_amp * np.sin(self.ripple_n * th) + noise
+        return np.where(self.encoder, enc, tacho)
+
+    def truth(self, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
+        """(n, nsensor) noise- and quantisation-free values: θ (rad) or gain·ω (V)."""
+        return np.where(self.encoder, qpos[:, self.dofs], self.gain * qvel[:, self.dofs])

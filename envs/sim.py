@@ -8,10 +8,9 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from .config import ConfigError
 from .params import EpisodeParams, ModelIndex, apply
 from .plants import PlantSpec, plant_spec, to_mjcf
-from .sensors import measure_all
+from .sensors import SensorArrays
 
 
 @dataclass
@@ -37,6 +36,7 @@ class PlantSim:
         self.data = mujoco.MjData(self.model)
         self.idx = ModelIndex.of(self.model, self.spec)
         self.params = EpisodeParams.nominal(self.spec)
+        self.sensors = SensorArrays.of(self.spec, self.idx.dofs)
         self._seed(0)
         apply(self.model, self.data, self.spec, self.idx, self.params)
 
@@ -62,8 +62,8 @@ class PlantSim:
         if seed is not None:
             self._seed(seed)
         mujoco.mj_resetData(self.model, self.data)
-        self.data.qpos[:] = self._expand(qpos)
-        self.data.qvel[:] = self._expand(qvel)
+        self.data.qpos[:] = self.spec.full_state(qpos)
+        self.data.qvel[:] = self.spec.full_state(qvel)
         mujoco.mj_forward(self.model, self.data)
         return self._result()
 
@@ -71,18 +71,6 @@ class PlantSim:
         """Independent streams for sensor noise and delay jitter, both from the episode seed."""
         noise, jitter = np.random.SeedSequence(seed).spawn(2)
         self.rng, self.jitter_rng = np.random.default_rng(noise), np.random.default_rng(jitter)
-
-    def _expand(self, x: np.ndarray | None) -> np.ndarray:
-        nv = self.model.nv
-        if x is None:
-            return np.zeros(nv)
-        x = np.atleast_1d(np.asarray(x, dtype=float))
-        if x.shape == (nv,):
-            return x
-        if x.shape == (1,) and self.spec.belts:
-            ratios = self.spec.kinematic_ratios()
-            return np.array([x[0] * ratios[j.name] for j in self.spec.joints])
-        raise ConfigError("initial state", f"expected {nv} values (or 1 for a belt drive), got {x.shape}")
 
     def step(self, u: float, nstep: int | None = None) -> StepResult:
         """Hold command u for one control period (or nstep physics steps); read the sensors at the end."""
@@ -105,7 +93,8 @@ class PlantSim:
             or not np.all(np.isfinite(d.qvel))
             or d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
         )
-        meas = measure_all(self.spec, d.qpos, d.qvel, self.dofs, self.rng, self.params.noise_scale)
+        noise = self.sensors.noise([self.rng], np.array([self.params.noise_scale]))
+        meas = self.sensors.measure(d.qpos[None], d.qvel[None], noise)[0]
         return StepResult(meas, d.qpos[list(self.dofs)].copy(), d.qvel[list(self.dofs)].copy(), diverged)
 
     def friction_torque(self) -> np.ndarray:

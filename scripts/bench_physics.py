@@ -10,6 +10,7 @@ import argparse
 import time
 
 import mujoco
+
 from frictiongym.envs.config import plant_names
 from frictiongym.envs.plants import plant_spec, to_mjcf
 

@@ -15,10 +15,11 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from tqdm import tqdm
+
 from frictiongym.envs import checks, report
 from frictiongym.envs.identification import m220_step_counts
 from frictiongym.envs.plants import plant_config, plant_spec
-from tqdm import tqdm
 
 
 def figures(out: Path) -> list[str]:

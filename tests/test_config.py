@@ -3,6 +3,7 @@
 import math
 
 import pytest
+
 from frictiongym.envs import units
 from frictiongym.envs.config import ConfigError, load_yaml, plant_names
 from frictiongym.envs.params import EpisodeParams

@@ -6,6 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+
 from frictiongym.envs import validation
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.friction import LuGreParams, check_numerics

@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+
 from frictiongym.envs import checks
 from frictiongym.envs.identification import coulomb_viscous_fit, m220_step_counts, two_point_step_id
 from frictiongym.envs.plants import m220_eq22, plant_config, plant_spec

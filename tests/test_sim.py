@@ -3,9 +3,10 @@
 import mujoco
 import numpy as np
 import pytest
+from mujoco.batch import Batch
+
 from frictiongym.envs.params import EpisodeParams, apply_batch
 from frictiongym.envs.sim import PlantSim
-from mujoco.batch import Batch
 
 
 @pytest.mark.parametrize("delay_steps", [0, 1, 7, 40])

@@ -1,0 +1,123 @@
+"""Episode metrics, computed by this one module for every controller (plain functions over arrays).
+
+Inputs: t (s), reference r, true tracked output y (same unit), command u (V or N·m), true velocity v of the
+tracked joint (rad/s). Error e = y - r.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+METRIC_NAMES = (
+    "iae",
+    "ise",
+    "rms_error",
+    "final_error",
+    "settling_time",
+    "overshoot_pct",
+    "limit_cycle_amp",
+    "limit_cycle_freq_hz",
+    "stick_slip_events",
+    "reversal_peak_error",
+    "effort_rms",
+    "effort_total_variation",
+)
+
+
+def integral_errors(t: np.ndarray, e: np.ndarray) -> dict[str, float]:
+    """IAE = Σ|e|·dt, ISE = Σe²·dt (rectangle rule on the sampling grid), RMS error."""
+    dt = float(np.mean(np.diff(t))) if len(t) > 1 else 0.0
+    return {
+        "iae": float(np.sum(np.abs(e)) * dt),
+        "ise": float(np.sum(e**2) * dt),
+        "rms_error": float(np.sqrt(np.mean(e**2))),
+    }
+
+
+def final_error(e: np.ndarray, fraction: float = 0.1) -> float:
+    """Steady-state error: mean |e| over the last `fraction` of the episode."""
+    n = max(1, round(len(e) * fraction))
+    return float(np.mean(np.abs(e[-n:])))
+
+
+def settling_time(t: np.ndarray, e: np.ndarray, band: float) -> float:
+    """Time after which |e| stays within band (s from the start); nan if it never settles."""
+    outside = np.flatnonzero(np.abs(e) > band)
+    if len(outside) == 0:
+        return float(t[0])
+    if outside[-1] == len(e) - 1:
+        return float("nan")
+    return float(t[outside[-1] + 1])
+
+
+def overshoot_pct(e: np.ndarray) -> float:
+    """Largest excursion past the set-point opposite to the initial error, in % of |e(0)| (0 if none)."""
+    if abs(e[0]) == 0:
+        return 0.0
+    return float(max(0.0, np.max(-np.sign(e[0]) * e)) / abs(e[0]) * 100.0)
+
+
+def limit_cycle(t: np.ndarray, y: np.ndarray, window: float = 0.4, min_amp: float = 0.0) -> dict[str, float]:
+    """Amplitude (half peak-to-peak) and frequency (from mean-crossings) of y over the last `window`
+    fraction of the episode (or the last `window` seconds if window > 1). Frequency is 0 below min_amp."""
+    sel = t >= (t[-1] - window if window > 1 else t[0] + (1 - window) * (t[-1] - t[0]))
+    yw, tw = y[sel], t[sel]
+    amp = 0.5 * float(np.max(yw) - np.min(yw)) if len(yw) else float("nan")
+    if not len(yw) or amp <= min_amp:
+        return {"limit_cycle_amp": amp, "limit_cycle_freq_hz": 0.0}
+    s = np.signbit(yw - np.mean(yw))
+    crossings = np.flatnonzero(s[1:] != s[:-1])
+    if len(crossings) < 3:
+        return {"limit_cycle_amp": amp, "limit_cycle_freq_hz": 0.0}
+    tc = tw[crossings]
+    return {"limit_cycle_amp": amp, "limit_cycle_freq_hz": float((len(tc) - 1) / 2.0 / (tc[-1] - tc[0]))}
+
+
+def stick_slip_events(v: np.ndarray, threshold: float) -> int:
+    """Number of stuck -> moving transitions of the velocity (|v| crosses threshold upwards after a stick)."""
+    moving = np.abs(v) >= threshold
+    return int(np.count_nonzero(moving[1:] & ~moving[:-1]))
+
+
+def reversal_peak_error(t: np.ndarray, r: np.ndarray, e: np.ndarray, half_window: float) -> float:
+    """Largest |e| within ±half_window (s) of each reference velocity reversal; nan if r never reverses."""
+    dr = np.diff(r)
+    sign = np.sign(dr)
+    nz = np.flatnonzero(sign != 0)
+    rev = nz[1:][sign[nz[1:]] != sign[nz[:-1]]]
+    if len(rev) == 0:
+        return float("nan")
+    return float(max(np.max(np.abs(e[(t >= t[i] - half_window) & (t <= t[i] + half_window)])) for i in rev))
+
+
+def effort(u: np.ndarray) -> dict[str, float]:
+    """Control effort RMS and total variation Σ|Δu|."""
+    return {
+        "effort_rms": float(np.sqrt(np.mean(u**2))),
+        "effort_total_variation": float(np.sum(np.abs(np.diff(u)))),
+    }
+
+
+def episode_metrics(
+    t: np.ndarray,
+    r: np.ndarray,
+    y: np.ndarray,
+    u: np.ndarray,
+    v: np.ndarray,
+    *,
+    settle_band: float,
+    stick_velocity: float,
+    lc_min_amp: float = 0.0,
+    reversal_half_window: float = 0.25,
+) -> dict[str, float]:
+    """All metrics of one episode (see METRIC_NAMES)."""
+    e = y - r
+    out = integral_errors(t, e)
+    out["final_error"] = final_error(e)
+    out["settling_time"] = settling_time(t, e, settle_band)
+    out["overshoot_pct"] = overshoot_pct(e)
+    out.update(limit_cycle(t, y - r, min_amp=lc_min_amp))
+    out["stick_slip_events"] = float(stick_slip_events(v, stick_velocity))
+    out["reversal_peak_error"] = reversal_peak_error(t, r, e, reversal_half_window)
+    out.update(effort(u))
+    return out

@@ -1,0 +1,49 @@
+"""Metrics on signals whose values are known by construction."""
+
+import numpy as np
+import pytest
+
+from frictiongym.envs import metrics
+
+
+def test_integrals_of_a_constant_error():
+    t = np.arange(0, 1.0, 0.01)
+    m = metrics.integral_errors(t, np.full_like(t, 0.5))
+    assert (
+        m["iae"] == pytest.approx(0.5)
+        and m["ise"] == pytest.approx(0.25)
+        and m["rms_error"] == pytest.approx(0.5)
+    )
+
+
+def test_settling_overshoot_on_a_damped_oscillation():
+    t = np.arange(0, 10, 0.01)
+    e = np.exp(-t) * np.cos(2 * np.pi * t)  # first undershoot near t = 0.5: e ≈ -exp(-0.5)
+    assert metrics.overshoot_pct(e) == pytest.approx(100 * np.exp(-0.5), rel=0.02)
+    ts = metrics.settling_time(t, e, 0.02)
+    assert np.all(np.abs(e[t >= ts]) <= 0.02) and abs(e[t < ts][-1]) > 0.02
+    assert np.isnan(metrics.settling_time(t, np.ones_like(t), 0.02))
+
+
+def test_limit_cycle_amplitude_and_frequency():
+    t = np.arange(0, 10, 0.001)
+    y = 0.3 * np.sin(2 * np.pi * 2.5 * t)
+    lc = metrics.limit_cycle(t, y)
+    assert lc["limit_cycle_amp"] == pytest.approx(0.3, rel=1e-3)
+    assert lc["limit_cycle_freq_hz"] == pytest.approx(2.5, rel=0.01)
+    assert metrics.limit_cycle(t, 1e-6 * y, min_amp=1e-3)["limit_cycle_freq_hz"] == 0.0
+
+
+def test_stick_slip_events_and_reversals():
+    v = np.array([0, 0, 1, 1, 0, 0, 2, 0, -1, -1, 0])
+    assert metrics.stick_slip_events(v, 0.5) == 3
+    t = np.linspace(0, 10, 1001)
+    r = np.sin(2 * np.pi * 0.2 * t)  # reversals at t = 1.25, 3.75, ...
+    e = np.where(np.abs(t - 3.75) < 0.05, 0.1, 0.001)
+    assert metrics.reversal_peak_error(t, r, e, 0.25) == pytest.approx(0.1)
+    assert np.isnan(metrics.reversal_peak_error(t, np.zeros_like(t), e, 0.25))
+
+
+def test_effort():
+    m = metrics.effort(np.array([1.0, -1.0, 1.0]))
+    assert m["effort_rms"] == pytest.approx(1.0) and m["effort_total_variation"] == pytest.approx(4.0)
