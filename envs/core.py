@@ -1,0 +1,293 @@
+"""The episode logic shared by the single env and the vector env: parameter and initial-state draws,
+sampled-data stepping with jitter, observations, reward, logging and episode metrics.
+
+All arrays carry a leading axis of n simulations; the single env is n = 1 on an MjData, the vector env
+n = N on a mujoco.batch.Batch. Both run the same arithmetic, so the same seeds give bit-identical episodes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+
+import mujoco
+import numpy as np
+from mujoco.batch import Batch, SimulationError
+
+from .metrics import episode_metrics
+from .params import EpisodeParams, ModelIndex, apply, apply_batch
+from .plants import to_mjcf
+from .scenario import Scenario
+from .sensors import SensorArrays
+
+OBS_CLIP = 1e6  # observations are clipped here and never NaN (a diverged simulation ends the episode)
+BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
+
+
+class SingleBackend:
+    """One MjData."""
+
+    def __init__(self, model: mujoco.MjModel, scenario: Scenario, idx: ModelIndex):
+        self.model, self.data, self.sc, self.idx, self.n = model, mujoco.MjData(model), scenario, idx, 1
+
+    def apply(self, ids: np.ndarray, params: list[EpisodeParams]) -> None:
+        apply(self.model, self.data, self.sc.spec, self.idx, params[0])
+
+    def reset_state(self, ids: np.ndarray, qpos: np.ndarray, qvel: np.ndarray) -> None:
+        mujoco.mj_resetData(self.model, self.data)
+        self.data.qpos[:], self.data.qvel[:] = qpos[0], qvel[0]
+        mujoco.mj_forward(self.model, self.data)
+
+    def set_delay(self, ids: np.ndarray, delay: np.ndarray) -> None:
+        self.model.actuator_delay[self.idx.drive] = delay[0]
+
+    def step(self, command: np.ndarray) -> np.ndarray:
+        """Advance one control period; returns the per-simulation 'diverged' flags."""
+        self.data.ctrl[self.idx.drive_ctrl] = command[0]
+        mujoco.mj_step(self.model, self.data, self.sc.spec.substeps)
+        return np.array([self.data.warning[BADQACC].number > 0])
+
+    def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        d = self.data
+        return d.qpos[None], d.qvel[None], d.act[None], d.actuator_force[None]
+
+
+class BatchBackend:
+    """A mujoco.batch.Batch of n simulations on nthread threads."""
+
+    def __init__(self, model: mujoco.MjModel, scenario: Scenario, idx: ModelIndex, n: int, nthread: int):
+        self.batch, self.sc, self.idx, self.n = Batch(model, n, nthread), scenario, idx, n
+        self.qpos, self.qvel, self.ctrl = (
+            self.batch.bind("qpos"),
+            self.batch.bind("qvel"),
+            self.batch.bind("ctrl"),
+        )
+        self.act = self.batch.bind("act")
+        self.force = self.batch.bind("actuator_force")
+        self.delay = self.batch.expand("actuator_delay")
+        self.failed = np.zeros(n, dtype=bool)
+
+    def apply(self, ids: np.ndarray, params: list[EpisodeParams]) -> None:
+        apply_batch(self.batch, self.sc.spec, self.idx, params, ids)
+
+    def reset_state(self, ids: np.ndarray, qpos: np.ndarray, qvel: np.ndarray) -> None:
+        self.batch.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
+        self.qpos[ids], self.qvel[ids] = qpos, qvel
+        self.batch.forward(ids)
+        self.failed[ids] = False
+
+    def set_delay(self, ids: np.ndarray, delay: np.ndarray) -> None:
+        self.delay[ids, self.idx.drive] = delay
+
+    def step(self, command: np.ndarray) -> np.ndarray:
+        self.ctrl[:, self.idx.drive_ctrl] = command
+        try:
+            self.batch.step(nstep=self.sc.spec.substeps)
+        except SimulationError as e:  # those simulations kept their state; the others ran
+            self.failed[e.ids] = True
+        return (self.batch.warning[:, BADQACC, 1] > 0) | self.failed
+
+    def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        return self.qpos, self.qvel, self.act, self.force
+
+
+class ServoCore:
+    """Episodes of one scenario on n simulations (see module docstring)."""
+
+    def __init__(self, scenario: Scenario, n: int = 1, nthread: int = 0, batch: bool = False):
+        sc = self.sc = scenario
+        spec = sc.spec
+        self.model = mujoco.MjModel.from_xml_string(to_mjcf(spec))
+        self.idx = ModelIndex.of(self.model, spec)
+        self.backend = (
+            BatchBackend(self.model, sc, self.idx, n, nthread)
+            if batch
+            else SingleBackend(self.model, sc, self.idx)
+        )
+        self.n = n
+        self.sensors = SensorArrays.of(spec, self.idx.dofs)
+        self.nsensor = len(spec.sensors)
+        self.track_dof = int(self.sensors.dofs[sc.tracked_sensor])
+        m = self.model
+        self.fric_dofs = np.array(
+            [int(m.jnt_dofadr[m.actuator_trnid[a, 0]]) for a in self.idx.friction], dtype=int
+        )
+        self.fric_act = np.array(self.idx.friction, dtype=int)
+        self.bristle_adr = np.array(
+            [m.actuator_actadr[a] for a in self.idx.friction if m.actuator_actnum[a] > 0], dtype=int
+        )
+        track_joint = spec.joints[spec.joint_index(spec.sensors[sc.tracked_sensor].joint)]
+        self.stick_velocity = track_joint.friction.vs if track_joint.friction is not None else 1e-3
+        res = spec.sensors[sc.tracked_sensor].resolution
+        self.lc_min_amp = res if spec.sensors[sc.tracked_sensor].kind == "encoder" else 1e-3 * sc.output_scale
+        T = sc.episode_steps
+        self.t = np.arange(T + 1) * sc.control_period
+        self.ref = sc.reference(np.arange(T + 1 + sc.preview_steps) * sc.control_period)
+        # per-simulation episode state
+        self.k = np.zeros(n, dtype=int)
+        self.prev_action = np.zeros(n)
+        self.hist = np.zeros((n, sc.history, self.nsensor + 1))
+        self.log_y = np.zeros((n, T + 1))
+        self.log_v = np.zeros((n, T + 1))
+        self.log_u = np.zeros((n, T + 1))
+        self.params: list[EpisodeParams] = [EpisodeParams.nominal(spec)] * n
+        self.noise_scale = np.ones(n)
+        self.sigma2 = np.zeros((n, len(self.fric_act)))
+        self.delay_steps = np.zeros(n, dtype=int)
+        self.jitter_steps = np.zeros(n, dtype=int)
+        self.noise_rng: list[np.random.Generator] = [np.random.default_rng(0)] * n
+        self.jitter_rng: list[np.random.Generator] = [np.random.default_rng(0)] * n
+        self.diverged = np.zeros(n, dtype=bool)
+        self.obs_dim = (
+            self.nsensor
+            + 2
+            + sc.preview_steps
+            + sc.history * (self.nsensor + 1)
+            + (1 + 2 * len(self.fric_act) if sc.privileged else 0)
+        )
+
+    # ------------------------------------------------------------------ reset
+    def draw(self, seed: int) -> tuple[EpisodeParams, np.ndarray, np.ndarray, list[np.random.Generator]]:
+        """Everything random about an episode, from its seed alone: parameters, initial state, and the
+        noise and jitter streams."""
+        sc = self.sc
+        s_params, s_init, s_noise, s_jitter = np.random.SeedSequence(seed).spawn(4)
+        if sc.randomize:
+            params = EpisodeParams.draw(sc.spec, np.random.default_rng(s_params), sc.randomization)
+        else:
+            params = EpisodeParams.nominal(sc.spec)
+        init = np.random.default_rng(s_init)
+        qpos = sc.spec.full_state(init.uniform(sc.qpos_range[:, 0], sc.qpos_range[:, 1]))
+        qvel = sc.spec.full_state(init.uniform(sc.qvel_range[:, 0], sc.qvel_range[:, 1]))
+        return params, qpos, qvel, [np.random.default_rng(s_noise), np.random.default_rng(s_jitter)]
+
+    def reset(self, ids: np.ndarray, seeds: list[int]) -> np.ndarray:
+        """Start new episodes in simulations ids with the given seeds; returns their observations."""
+        draws = [self.draw(s) for s in seeds]
+        params = [d[0] for d in draws]
+        self.backend.apply(ids, params)
+        self.backend.reset_state(ids, np.array([d[1] for d in draws]), np.array([d[2] for d in draws]))
+        spec = self.sc.spec
+        for i, (p, _, _, (noise, jitter)) in zip(ids, draws, strict=True):
+            self.params[i], self.noise_rng[i], self.jitter_rng[i] = p, noise, jitter
+            self.noise_scale[i] = p.noise_scale
+            self.sigma2[i] = [f.sigma2 if spec.friction_model == "lugre" else 0.0 for f in p.friction]
+            self.delay_steps[i], self.jitter_steps[i] = p.delay_steps(spec), p.jitter_steps(spec)
+        self.k[ids] = 0
+        self.prev_action[ids] = 0.0
+        self.hist[ids] = 0.0
+        self.diverged[ids] = False
+        self.log_u[ids] = 0.0
+        obs, _ = self._observe(ids)
+        return obs
+
+    # ------------------------------------------------------------------ step
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+        """One control period for all n simulations. action: (n, 1) in [-1, 1] (clipped)."""
+        action = np.asarray(action, dtype=float).reshape(self.n, -1)[:, 0]
+        if not np.all(np.isfinite(action)):
+            raise ValueError(f"actions must be finite, got {action}")
+        a = np.clip(action, -1.0, 1.0)
+        command = a * self.sc.action_scale
+        jittered = np.flatnonzero(self.jitter_steps)
+        if len(jittered):
+            j = np.array([self.jitter_rng[i].integers(0, self.jitter_steps[i] + 1) for i in jittered])
+            self.backend.set_delay(jittered, (self.delay_steps[jittered] + j) * self.sc.spec.timestep)
+        self.diverged |= self.backend.step(command)
+        self.k += 1
+        ids = np.arange(self.n)
+        obs, truth = self._observe(ids)
+        e = (truth - self.ref[self.k]) / self.sc.output_scale
+        w = self.sc.reward_weights
+        terms = {
+            "reward_tracking": -w["tracking"] * np.minimum(e * e, OBS_CLIP),
+            "reward_effort": -w["effort"] * a * a,
+            "reward_smoothness": -w["smoothness"] * (a - self.prev_action) ** 2,
+        }
+        reward = terms["reward_tracking"] + terms["reward_effort"] + terms["reward_smoothness"]
+        reward = np.where(self.diverged, -OBS_CLIP, np.nan_to_num(reward, nan=-OBS_CLIP))
+        self.log_u[ids, self.k] = command
+        self.prev_action = a
+        terminated = self.diverged.copy()
+        truncated = (self.k >= self.sc.episode_steps) & ~terminated
+        info = {
+            **terms,
+            "command": command,
+            "reference": self.ref[self.k],
+            "output": truth,
+            "time": self.t[np.minimum(self.k, self.sc.episode_steps)],
+            "diverged": self.diverged.copy(),
+        }
+        return obs, reward, terminated, truncated, info
+
+    def _observe(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Observations (float32) and true tracked outputs of simulations ids; logs them."""
+        qpos, qvel, act, force = (x[ids] for x in self.backend.state())
+        noise = self.sensors.noise([self.noise_rng[i] for i in ids], self.noise_scale[ids])
+        meas = self.sensors.measure(qpos, qvel, noise)
+        truth = self.sensors.truth(qpos, qvel)[:, self.sc.tracked_sensor]
+        k = self.k[ids]
+        ok = np.isfinite(truth)
+        self.log_y[ids, k] = np.where(ok, truth, 0.0)
+        self.log_v[ids, k] = np.where(ok, qvel[:, self.track_dof], 0.0)
+        sc = self.sc
+        scale = sc.output_scale
+        ref = self.ref[k[:, None] + np.arange(sc.preview_steps + 1)] / scale
+        parts = [meas / scale, ref, self.prev_action[ids, None]]
+        if sc.history:
+            self.hist[ids] = np.roll(self.hist[ids], 1, axis=1)
+            self.hist[ids, 0] = np.concatenate([meas / scale, self.prev_action[ids, None]], axis=1)
+            parts.append(self.hist[ids].reshape(len(ids), -1))
+        if sc.privileged:
+            unit = sc.action_scale * sc.spec.actuator_gain  # torque of a unit action
+            fr = force[:, self.fric_act] - self.sigma2[ids] * qvel[:, self.fric_dofs]
+            z = (
+                act[:, self.bristle_adr]
+                if len(self.bristle_adr)
+                else np.zeros((len(ids), len(self.fric_act)))
+            )
+            sigma0 = np.array([[f.sigma0 for f in self.params[i].friction] for i in ids]).reshape(
+                len(ids), -1
+            )
+            parts += [truth[:, None] / scale, fr / unit, sigma0 * z / unit]
+        obs = np.concatenate(parts, axis=1)
+        return np.clip(np.nan_to_num(obs, nan=0.0), -OBS_CLIP, OBS_CLIP).astype(np.float32), truth
+
+    # ------------------------------------------------------------------ ground truth and metrics
+    def ground_truth(self, i: int) -> dict:
+        """True states of simulation i: joint angles/velocities, bristle states, friction torques."""
+        qpos, qvel, act, force = (x[i] for x in self.backend.state())
+        return {
+            "qpos": qpos.copy(),
+            "qvel": qvel.copy(),
+            "bristle": act[self.bristle_adr].copy(),
+            "friction_torque": force[self.fric_act] - self.sigma2[i] * qvel[self.fric_dofs],
+        }
+
+    def params_dict(self, i: int) -> dict:
+        return asdict(self.params[i])
+
+    def episode_log(self, i: int) -> dict[str, np.ndarray]:
+        """Signals of simulation i's current episode up to now: t, reference, output, command, velocity."""
+        k = self.k[i] + 1
+        return {
+            "t": self.t[:k],
+            "reference": self.ref[:k],
+            "output": self.log_y[i, :k],
+            "command": self.log_u[i, :k],
+            "velocity": self.log_v[i, :k],
+        }
+
+    def metrics(self, i: int) -> dict[str, float]:
+        """Episode metrics of simulation i (commands from the first period on)."""
+        g = self.episode_log(i)
+        return episode_metrics(
+            g["t"][1:],
+            g["reference"][1:],
+            g["output"][1:],
+            g["command"][1:],
+            g["velocity"][1:],
+            settle_band=self.sc.settle_band,
+            stick_velocity=self.stick_velocity,
+            lc_min_amp=self.lc_min_amp,
+            reversal_half_window=max(0.25, 5 * self.sc.control_period),
+        )

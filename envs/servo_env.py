@@ -1,0 +1,201 @@
+"""Gymnasium environments: one class over the shared core, three thin per-plant subclasses.
+
+One `step` = one control period: the action is held (ZOH) over the period, the plant's actuation delay,
+jitter and sensor models apply, and the observation is what a digital controller reads at the next
+sampling instant.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import EzPickle
+
+from .core import OBS_CLIP, ServoCore
+from .scenario import Scenario, load_scenario
+
+OBSERVATION_DOC = """
+    Observation (float32, flat Box), in this order; s = the scenario's ``task.output_scale``:
+
+    ===========================  ====================================================================
+    entries                      meaning
+    ===========================  ====================================================================
+    n_sensors                    sensor readings / s (encoder angle in rad, quantised; tacho in V)
+    1                            reference r(t_k) / s
+    preview_steps                r(t_{k+1}) ... r(t_{k+P}) / s
+    1                            previous action (the command being held), in [-1, 1]
+    history·(n_sensors + 1)      past (readings / s, action) samples, newest first (observation.history)
+    1 + 2·n_friction             privileged only: true output / s, friction torque and bristle force
+                                 σ0·z, both in units of a full-scale action's torque
+    ===========================  ====================================================================
+
+    Action: Box(-1, 1, (1,)). The amplifier command is action · ``task.action_scale`` (V or N·m), then
+    clipped by the plant's limit. Classical controllers convert with ``command_to_action`` /
+    ``action_to_command`` and read physical readings with ``decode_observation``.
+
+    Reward: -(w_t·(e/s)² + w_u·a² + w_du·(a - a_prev)²) with e = true output - reference at the new sample;
+    the terms are in ``info`` as reward_tracking, reward_effort, reward_smoothness. A diverged simulation
+    ends the episode (terminated, ``info["diverged"]``) with reward -1e6.
+    ``info`` also holds the ground truth (qpos, qvel, bristle, friction_torque), the command, the true output,
+    the reference, and at reset the episode's drawn parameters; at the end ``info["episode_metrics"]``.
+"""
+
+
+class ServoEnv(gym.Env, EzPickle):
+    __doc__ = "A friction-dominated servo under sampled-data control (frictiongym)." + OBSERVATION_DOC
+    metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 25}
+    default_scenario = "kang_regulation"
+    plant: str | None = None
+
+    def __init__(
+        self,
+        scenario: str | Path | None = None,
+        *,
+        randomize: bool | None = None,
+        control_period_s: float | None = None,
+        episode_s: float | None = None,
+        overrides: dict | None = None,
+        render_mode: str | None = None,
+    ):
+        EzPickle.__init__(
+            self,
+            scenario,
+            randomize=randomize,
+            control_period_s=control_period_s,
+            episode_s=episode_s,
+            overrides=overrides,
+            render_mode=render_mode,
+        )
+        self.scenario: Scenario = load_scenario(
+            scenario or self.default_scenario,
+            overrides,
+            randomize=randomize,
+            control_period_s=control_period_s,
+            episode_s=episode_s,
+        )
+        if self.plant is not None and self.scenario.spec.name != self.plant:
+            raise ValueError(
+                f"scenario {self.scenario.name!r} is for plant {self.scenario.spec.name!r}, "
+                f"not {self.plant!r}"
+            )
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode {render_mode!r} not in {self.metadata['render_modes']}")
+        self.render_mode = render_mode
+        self.core = ServoCore(self.scenario)
+        self.observation_space = spaces.Box(-OBS_CLIP, OBS_CLIP, (self.core.obs_dim,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
+        self._renderer: mujoco.Renderer | None = None
+        self._ids = np.array([0])
+
+    # --------------------------------------------------------------- Gymnasium API
+    def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
+        """Start an episode. With seed, the episode (parameters, initial state, noise, jitter) is a function
+        of the seed alone; without, the next seed comes from the env's generator."""
+        super().reset(seed=seed)
+        episode_seed = seed if seed is not None else int(self.np_random.integers(2**63))
+        obs = self.core.reset(self._ids, [episode_seed])
+        return obs[0], {"params": self.core.params_dict(0), "episode_seed": episode_seed, **self._truth()}
+
+    def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        obs, reward, term, trunc, info = self.core.step(np.asarray(action, dtype=float).reshape(1, -1))
+        out = {k: (v[0] if isinstance(v, np.ndarray) and v.ndim else v) for k, v in info.items()}
+        out.update(self._truth())
+        if term[0] or trunc[0]:
+            out["episode_metrics"] = self.core.metrics(0)
+        return obs[0], float(reward[0]), bool(term[0]), bool(trunc[0]), out
+
+    def render(self) -> np.ndarray | None:
+        """An RGB frame of the disks (headless: set MUJOCO_GL=egl or osmesa)."""
+        if self.render_mode != "rgb_array":
+            return None
+        if self._renderer is None:
+            self._renderer = mujoco.Renderer(self.core.model, 480, 640)
+        self._renderer.update_scene(self.core.backend.data, camera="top")
+        return self._renderer.render()
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    # --------------------------------------------------------------- helpers for classical controllers
+    def _truth(self) -> dict:
+        return self.core.ground_truth(0)
+
+    def command_to_action(self, command: float) -> np.ndarray:
+        """Amplifier command (V or N·m) -> action."""
+        return np.array([command / self.scenario.action_scale], dtype=np.float32)
+
+    def action_to_command(self, action: np.ndarray | float) -> float:
+        """Action -> amplifier command (V or N·m), after the [-1, 1] clip."""
+        return float(np.clip(np.asarray(action, dtype=float).ravel()[0], -1, 1) * self.scenario.action_scale)
+
+    def decode_observation(self, obs: np.ndarray) -> dict[str, Any]:
+        """Physical readings from an observation: sensors (rad or V), reference, preview, previous command."""
+        sc, n = self.scenario, len(self.scenario.spec.sensors)
+        s = sc.output_scale
+        return {
+            "sensors": dict(zip([x.name for x in sc.spec.sensors], obs[:n] * s, strict=True)),
+            "reference": float(obs[n] * s),
+            "preview": obs[n + 1 : n + 1 + sc.preview_steps] * s,
+            "previous_command": float(obs[n + 1 + sc.preview_steps] * sc.action_scale),
+        }
+
+    def plot_episode(self, path: str | Path | None = None):
+        """Matplotlib figure of the current episode: reference and true output, error, command."""
+        import matplotlib
+
+        if path is not None:
+            matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        g = self.core.episode_log(0)
+        sens = self.scenario.spec.sensors[self.scenario.tracked_sensor]
+        unit = "rad" if sens.kind == "encoder" else "V"
+        fig, ax = plt.subplots(3, 1, figsize=(7, 6), sharex=True)
+        ax[0].plot(g["t"], g["reference"], "--", label="reference")
+        ax[0].plot(g["t"], g["output"], label=f"output ({sens.name}, true)")
+        ax[0].set_ylabel(unit)
+        ax[0].legend()
+        ax[1].plot(g["t"], g["output"] - g["reference"])
+        ax[1].set_ylabel(f"error ({unit})")
+        ax[2].step(g["t"], g["command"], where="pre")
+        ax[2].set(ylabel=f"command ({self.scenario.spec.command_unit})", xlabel="t (s)")
+        ax[0].set_title(f"{self.scenario.name}")
+        fig.tight_layout()
+        if path is not None:
+            fig.savefig(path, dpi=110)
+            plt.close(fig)
+        return fig
+
+
+class M220Env(ServoEnv):
+    __doc__ = (
+        "ECP M220 industrial emulator (seed 000 part 2): drive disk, belt, SR pulleys, load disk; "
+        "sensors encoder_drive, encoder_load (rad, 16000 counts/rev); command in V." + OBSERVATION_DOC
+    )
+    default_scenario = "m220_regulation"
+    plant = "m220"
+
+
+class FlexibleServoEnv(ServoEnv):
+    __doc__ = (
+        "Wallenborg's two-inertia flexible servo (seed 002 §3): sensors tacho1, tacho2 (V, 0.1 V per "
+        "rad/s); command in V (±10 V)." + OBSERVATION_DOC
+    )
+    default_scenario = "flexible_speed_step"
+    plant = "flexible_servo"
+
+
+class KangRobotEnv(ServoEnv):
+    __doc__ = (
+        "Kang's single-axis robot (seed 001 §6): sensor encoder (rad); command a torque in N·m."
+        + OBSERVATION_DOC
+    )
+    default_scenario = "kang_regulation"
+    plant = "kang_robot"
