@@ -40,8 +40,8 @@ class SingleBackend:
     def set_delay(self, ids: np.ndarray, delay: np.ndarray) -> None:
         self.model.actuator_delay[self.idx.drive] = delay[0]
 
-    def step(self, command: np.ndarray) -> np.ndarray:
-        """Advance one control period; returns the per-simulation 'diverged' flags."""
+    def step(self, ids: np.ndarray, command: np.ndarray) -> np.ndarray:
+        """Advance simulations ids one control period; returns their 'diverged' flags."""
         self.data.ctrl[self.idx.drive_ctrl] = command[0]
         mujoco.mj_step(self.model, self.data, self.sc.spec.substeps)
         return np.array([self.data.warning[BADQACC].number > 0])
@@ -78,13 +78,13 @@ class BatchBackend:
     def set_delay(self, ids: np.ndarray, delay: np.ndarray) -> None:
         self.delay[ids, self.idx.drive] = delay
 
-    def step(self, command: np.ndarray) -> np.ndarray:
-        self.ctrl[:, self.idx.drive_ctrl] = command
+    def step(self, ids: np.ndarray, command: np.ndarray) -> np.ndarray:
+        self.ctrl[ids, self.idx.drive_ctrl] = command
         try:
-            self.batch.step(nstep=self.sc.spec.substeps)
+            self.batch.step(ids, nstep=self.sc.spec.substeps)
         except SimulationError as e:  # those simulations kept their state; the others ran
             self.failed[e.ids] = True
-        return (self.batch.warning[:, BADQACC, 1] > 0) | self.failed
+        return (self.batch.warning[ids, BADQACC, 1] > 0) | self.failed[ids]
 
     def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         return self.qpos, self.qvel, self.act, self.force
@@ -181,41 +181,46 @@ class ServoCore:
         return obs
 
     # ------------------------------------------------------------------ step
-    def step(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
-        """One control period for all n simulations. action: (n, 1) in [-1, 1] (clipped)."""
-        action = np.asarray(action, dtype=float).reshape(self.n, -1)[:, 0]
+    def step(
+        self, action: np.ndarray, ids: np.ndarray | None = None
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
+        """One control period for simulations ids (default all); the others do not move. action: one
+        row per simulation in ids, in [-1, 1] (clipped). Returns arrays over ids."""
+        ids = np.arange(self.n) if ids is None else np.asarray(ids)
+        action = np.asarray(action, dtype=float).reshape(len(ids), -1)[:, 0]
         if not np.all(np.isfinite(action)):
             raise ValueError(f"actions must be finite, got {action}")
         a = np.clip(action, -1.0, 1.0)
         command = a * self.sc.action_scale
-        jittered = np.flatnonzero(self.jitter_steps)
+        jittered = ids[self.jitter_steps[ids] > 0]
         if len(jittered):
             j = np.array([self.jitter_rng[i].integers(0, self.jitter_steps[i] + 1) for i in jittered])
             self.backend.set_delay(jittered, (self.delay_steps[jittered] + j) * self.sc.spec.timestep)
-        self.diverged |= self.backend.step(command)
-        self.k += 1
-        ids = np.arange(self.n)
+        self.diverged[ids] |= self.backend.step(ids, command)
+        self.k[ids] += 1
+        k = self.k[ids]
         obs, truth = self._observe(ids)
-        e = (truth - self.ref[self.k]) / self.sc.output_scale
+        e = (truth - self.ref[k]) / self.sc.output_scale
         w = self.sc.reward_weights
         terms = {
             "reward_tracking": -w["tracking"] * np.minimum(e * e, OBS_CLIP),
             "reward_effort": -w["effort"] * a * a,
-            "reward_smoothness": -w["smoothness"] * (a - self.prev_action) ** 2,
+            "reward_smoothness": -w["smoothness"] * (a - self.prev_action[ids]) ** 2,
         }
         reward = terms["reward_tracking"] + terms["reward_effort"] + terms["reward_smoothness"]
-        reward = np.where(self.diverged, -OBS_CLIP, np.nan_to_num(reward, nan=-OBS_CLIP))
-        self.log_u[ids, self.k] = command
-        self.prev_action = a
-        terminated = self.diverged.copy()
-        truncated = (self.k >= self.sc.episode_steps) & ~terminated
+        diverged = self.diverged[ids]
+        reward = np.where(diverged, -OBS_CLIP, np.nan_to_num(reward, nan=-OBS_CLIP))
+        self.log_u[ids, k] = command
+        self.prev_action[ids] = a
+        terminated = diverged.copy()
+        truncated = (k >= self.sc.episode_steps) & ~terminated
         info = {
             **terms,
             "command": command,
-            "reference": self.ref[self.k],
+            "reference": self.ref[k],
             "output": truth,
-            "time": self.t[np.minimum(self.k, self.sc.episode_steps)],
-            "diverged": self.diverged.copy(),
+            "time": self.t[k],
+            "diverged": diverged.copy(),
         }
         return obs, reward, terminated, truncated, info
 
