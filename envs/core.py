@@ -199,19 +199,20 @@ class ServoCore:
         self.diverged[ids] |= self.backend.step(ids, command)
         self.k[ids] += 1
         k = self.k[ids]
+        a_prev = self.prev_action[ids].copy()
+        self.prev_action[ids] = a  # the observation shows the command now being held
         obs, truth = self._observe(ids)
         e = (truth - self.ref[k]) / self.sc.output_scale
         w = self.sc.reward_weights
         terms = {
             "reward_tracking": -w["tracking"] * np.minimum(e * e, OBS_CLIP),
             "reward_effort": -w["effort"] * a * a,
-            "reward_smoothness": -w["smoothness"] * (a - self.prev_action[ids]) ** 2,
+            "reward_smoothness": -w["smoothness"] * (a - a_prev) ** 2,
         }
         reward = terms["reward_tracking"] + terms["reward_effort"] + terms["reward_smoothness"]
         diverged = self.diverged[ids]
         reward = np.where(diverged, -OBS_CLIP, np.nan_to_num(reward, nan=-OBS_CLIP))
         self.log_u[ids, k] = command
-        self.prev_action[ids] = a
         terminated = diverged.copy()
         truncated = (k >= self.sc.episode_steps) & ~terminated
         info = {

@@ -451,6 +451,14 @@ def plant_spec(name: str, overrides: dict | None = None, friction_model: str = "
     if builder is None:
         raise ConfigError("plant", f"{cfg.get('plant')!r} not in {sorted(_BUILDERS)}")
     spec = builder(cfg, friction_model)
+    delay_hi = spec.randomization.get("delay_s", (0.0, spec.delay))[1]
+    jitter_hi = spec.randomization.get("jitter_s", (0.0, spec.jitter))[1]
+    if delay_hi + jitter_hi > spec.control_period + 1e-12:
+        raise ConfigError(
+            "randomization.delay_s",
+            f"delay up to {delay_hi} s plus jitter up to {jitter_hi} s exceeds "
+            f"the control period {spec.control_period} s",
+        )
     for j in spec.joints:
         if j.friction is not None:
             j.friction.validate(f"friction[{j.name}]")

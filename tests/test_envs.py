@@ -1,0 +1,196 @@
+"""Gymnasium environments: API, determinism, robustness, vector env equivalence, suites."""
+
+import os
+import subprocess
+import sys
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import frictiongym.envs  # noqa: F401  (registers the ids)
+from frictiongym.envs.config import ConfigError
+from frictiongym.envs.scenario import load_scenario, scenario_names
+from frictiongym.envs.suites import load_suite, suite_names
+from frictiongym.envs.vector import ServoVectorEnv, make_sb3_vec_env
+
+PLANT_ID = {
+    "kang_robot": "frictiongym/KangRobot-v0",
+    "m220": "frictiongym/M220-v0",
+    "flexible_servo": "frictiongym/FlexibleServo-v0",
+}
+
+
+def make(scenario, **kw):
+    return gym.make(PLANT_ID[load_scenario(scenario).spec.name], scenario=scenario, **kw)
+
+
+@pytest.mark.parametrize("scenario", scenario_names())
+def test_check_env_passes_for_every_scenario(scenario):
+    env = make(scenario, randomize=True, episode_s=1.0)
+    check_env(env.unwrapped, skip_render_check=True)
+
+
+def test_wrong_plant_for_id_is_rejected():
+    with pytest.raises(ValueError, match="is for plant"):
+        gym.make("frictiongym/KangRobot-v0", scenario="m220_regulation")
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        ({"control_period_s": 0.0123}, "sampling.control_period_s"),  # not a multiple of dt
+        ({"episode_s": 0.011}, "episode_s"),
+        (
+            {"overrides": {"task": {"action_scale_nm": 50.0}}},
+            "task.action_scale_nm",
+        ),  # above the 10 N·m limit
+        ({"overrides": {"reference": {"type": "chirp"}}}, "reference.type"),
+        ({"overrides": {"task": {"tracked_sensor": "tacho9"}}}, "task.tracked_sensor"),
+        ({"overrides": {"rewards": {}}}, "rewards"),
+    ],
+)
+def test_invalid_scenario_values_name_the_field(kwargs, field):
+    with pytest.raises(ConfigError) as e:
+        gym.make("frictiongym/KangRobot-v0", **kwargs)
+    assert e.value.field == field
+
+
+def test_nan_action_is_a_clear_error():
+    env = gym.make("frictiongym/KangRobot-v0")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.array([np.nan], dtype=np.float32))
+
+
+def test_same_seed_same_episode_different_seed_different_episode():
+    def run(seed):
+        env = gym.make("frictiongym/KangRobot-v0", randomize=True, episode_s=1.0)
+        obs, info = env.reset(seed=seed)
+        out = [obs]
+        rng = np.random.default_rng(0)
+        for _ in range(50):
+            obs, _r, *_ = env.step(rng.uniform(-1, 1, 1).astype(np.float32))
+            out.append(obs)
+        return np.array(out), info["params"]
+
+    (a, pa), (b, pb), (c, pc) = run(3), run(3), run(4)
+    assert np.array_equal(a, b) and pa == pb
+    assert not np.array_equal(a, c) and pa != pc
+
+
+def test_episode_structure_ground_truth_and_metrics():
+    env = gym.make("frictiongym/FlexibleServo-v0")  # flexible_speed_step: 10 s at 40 ms
+    _, info = env.reset(seed=0)
+    assert {"params", "qpos", "qvel", "bristle", "friction_torque"} <= set(info)
+    assert info["qvel"][0] == pytest.approx(1.0)  # ω1(0) = 1 rad/s, Wallenborg §4.3
+    n, done = 0, False
+    while not done:
+        _obs, r, term, trunc, info = env.step(np.zeros(1, dtype=np.float32))
+        n += 1
+        done = term or trunc
+        total = info["reward_tracking"] + info["reward_effort"] + info["reward_smoothness"]
+        assert r == pytest.approx(total)
+    assert n == 250 and trunc and not term
+    m = info["episode_metrics"]
+    # zero command: the shafts coast to a stop under friction, so the output ends at 0 V while the
+    # reference is 0 again after t = 5 s, and the 1 V step was never followed (IAE ≥ 3 V·s)
+    assert m["final_error"] == pytest.approx(0.0, abs=1e-3) and m["iae"] > 3.0
+
+
+def test_observation_layout_and_scaling_helpers():
+    env = gym.make("frictiongym/M220-v0", scenario="m220_reversal_tracking")
+    obs, _ = env.reset(seed=0)
+    u = env.unwrapped
+    assert obs.shape == (2 + 1 + 5 + 1,)
+    obs, *_ = env.step(u.command_to_action(1.0))
+    d = u.decode_observation(obs)
+    assert d["previous_command"] == pytest.approx(1.0)
+    assert d["reference"] == pytest.approx(0.5 * np.sin(2 * np.pi * 0.2 * 0.005), rel=1e-5)
+    res = 2 * np.pi / 16000
+    assert d["sensors"]["encoder_drive"] / res == pytest.approx(
+        round(d["sensors"]["encoder_drive"] / res), abs=1e-3
+    )
+    assert u.action_to_command(np.array([2.0])) == pytest.approx(2.0)  # clipped to 1 -> 2 V
+
+
+def test_privileged_observation_only_on_request():
+    plain = make("kang_regulation")
+    priv = make("kang_regulation", overrides={"observation": {"privileged": True}})
+    assert priv.observation_space.shape[0] == plain.observation_space.shape[0] + 3
+    obs, _ = priv.reset(seed=0)
+    assert obs[-3] == pytest.approx(1.0)  # true output / output_scale = 20 deg / 20 deg
+
+
+def test_divergence_ends_the_episode_with_a_flag_and_finite_observation():
+    env = gym.make("frictiongym/KangRobot-v0")
+    env.reset(seed=0)
+    core = env.unwrapped.core
+    core.model.actuator_dynprm[core.idx.friction[0], 6] = (
+        1e9  # bristle damping far outside the checked region
+    )
+    obs, r, term, _trunc, info = env.step(np.array([0.5], dtype=np.float32))
+    assert term and info["diverged"] and np.all(np.isfinite(obs)) and np.isfinite(r)
+
+
+@pytest.mark.parametrize("scenario", ["kang_regulation", "m220_reversal_tracking", "flexible_zero_speed"])
+def test_vector_env_matches_single_envs_bit_for_bit_across_autoresets(scenario):
+    v = ServoVectorEnv(scenario, 3, nthread=2, randomize=True, episode_s=0.4)
+    singles = [make(scenario, randomize=True, episode_s=0.4) for _ in range(3)]
+    o, _ = v.reset(seed=50)
+    so = [s.reset(seed=50 + i)[0] for i, s in enumerate(singles)]
+    assert all(np.array_equal(o[i], so[i]) for i in range(3))
+    rng, done = np.random.default_rng(1), [False] * 3
+    for _ in range(2 * v.scenario.episode_steps + 3):
+        a = rng.uniform(-1, 1, (3, 1)).astype(np.float32)
+        o, r, *_ = v.step(a)
+        for i, s in enumerate(singles):
+            if done[i]:
+                oi, ri, done[i] = s.reset()[0], 0.0, False
+            else:
+                oi, ri, te, tr, _ = s.step(a[i])
+                done[i] = te or tr
+            assert np.array_equal(o[i], oi) and r[i] == ri
+
+
+def test_sb3_adapter_autoresets_with_terminal_observation():
+    venv = make_sb3_vec_env("kang_regulation", 2, nthread=2, episode_s=0.1)  # 5 steps per episode
+    venv.reset()
+    for _k in range(5):
+        obs, _rew, done, infos = venv.step(np.zeros((2, 1)))
+    assert done.all() and all("terminal_observation" in i and i["TimeLimit.truncated"] for i in infos)
+    assert obs[0][0] == pytest.approx(1.0, abs=1e-4)  # new episode starts again at θ(0) = 20 deg
+
+
+def test_suites_are_defined_and_test_seeds_are_held_out():
+    assert {"paper", "default", "test"} <= set(suite_names())
+    default, test, paper = load_suite("default"), load_suite("test"), load_suite("paper")
+    assert {e.seed for e in default}.isdisjoint({e.seed for e in test})
+    assert all(e.randomize for e in default) and not any(e.randomize for e in paper)
+    for name in ("kang_regulation", "m220_reversal_tracking", "flexible_speed_step", "flexible_zero_speed"):
+        assert name in {e.scenario for e in default}
+    # the same suite episode gives the same drawn parameters in a fresh process
+    e = default[0]
+    code = (
+        "import gymnasium as gym, frictiongym.envs;"
+        f"e=gym.make('frictiongym/KangRobot-v0', scenario='{e.scenario}', randomize=True);"
+        f"print(e.reset(seed={e.seed})[1]['params'])"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True
+    ).stdout.strip()
+    here = make(e.scenario, randomize=True).reset(seed=e.seed)[1]["params"]
+    assert out == str(here)
+
+
+def test_rgb_render_headless_and_episode_plot(tmp_path):
+    code = (
+        "import gymnasium as gym, frictiongym.envs, numpy as np;"
+        "e=gym.make('frictiongym/M220-v0', render_mode='rgb_array'); e.reset(seed=0);"
+        "f=e.render(); assert f.shape == (480, 640, 3) and f.std() > 1, f.std();"
+        f"e.unwrapped.plot_episode(r'{tmp_path / 'ep.png'}')"
+    )
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=120)
+    assert (tmp_path / "ep.png").stat().st_size > 10_000
