@@ -104,7 +104,10 @@ class ServoCore:
             else SingleBackend(self.model, sc, self.idx)
         )
         self.n = n
+        self._all = np.arange(n)
         self.sensors = SensorArrays.of(spec, self.idx.dofs)
+        self.any_noise = self.sensors.any_noise
+        self.preview_offsets = np.arange(scenario.preview_steps + 1)
         self.nsensor = len(spec.sensors)
         self.track_dof = int(self.sensors.dofs[sc.tracked_sensor])
         m = self.model
@@ -186,7 +189,9 @@ class ServoCore:
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         """One control period for simulations ids (default all); the others do not move. action: one
         row per simulation in ids, in [-1, 1] (clipped). Returns arrays over ids."""
-        ids = np.arange(self.n) if ids is None else np.asarray(ids)
+        ids = self._all if ids is None else np.asarray(ids)
+        if (self.k[ids] >= self.sc.episode_steps).any() or self.diverged[ids].any():
+            raise RuntimeError("the episode has ended (truncated or diverged): call reset() first")
         action = np.asarray(action, dtype=float).reshape(len(ids), -1)[:, 0]
         if not np.all(np.isfinite(action)):
             raise ValueError(f"actions must be finite, got {action}")
@@ -211,7 +216,8 @@ class ServoCore:
         }
         reward = terms["reward_tracking"] + terms["reward_effort"] + terms["reward_smoothness"]
         diverged = self.diverged[ids]
-        reward = np.where(diverged, -OBS_CLIP, np.nan_to_num(reward, nan=-OBS_CLIP))
+        if diverged.any() or not np.isfinite(reward).all():
+            reward = np.where(diverged, -OBS_CLIP, np.nan_to_num(reward, nan=-OBS_CLIP))
         self.log_u[ids, k] = command
         terminated = diverged.copy()
         truncated = (k >= self.sc.episode_steps) & ~terminated
@@ -227,36 +233,53 @@ class ServoCore:
 
     def _observe(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Observations (float32) and true tracked outputs of simulations ids; logs them."""
-        qpos, qvel, act, force = (x[ids] for x in self.backend.state())
-        noise = self.sensors.noise([self.noise_rng[i] for i in ids], self.noise_scale[ids])
+        sel = slice(None) if len(ids) == self.n else ids  # views, not copies, for the common case
+        qpos, qvel, act, force = self.backend.state()
+        qpos, qvel = qpos[sel], qvel[sel]
+        noise = (
+            self.sensors.noise([self.noise_rng[i] for i in ids], self.noise_scale[ids])
+            if self.any_noise
+            else 0.0
+        )
         meas = self.sensors.measure(qpos, qvel, noise)
-        truth = self.sensors.truth(qpos, qvel)[:, self.sc.tracked_sensor]
+        truth = self.sensors.truth(qpos, qvel, self.sc.tracked_sensor)
+        vel = qvel[:, self.track_dof]
+        if not np.isfinite(truth).all():
+            truth, vel = np.nan_to_num(truth), np.nan_to_num(vel)
         k = self.k[ids]
-        ok = np.isfinite(truth)
-        self.log_y[ids, k] = np.where(ok, truth, 0.0)
-        self.log_v[ids, k] = np.where(ok, qvel[:, self.track_dof], 0.0)
+        self.log_y[ids, k] = truth
+        self.log_v[ids, k] = vel
         sc = self.sc
-        scale = sc.output_scale
-        ref = self.ref[k[:, None] + np.arange(sc.preview_steps + 1)] / scale
-        parts = [meas / scale, ref, self.prev_action[ids, None]]
+        inv = 1.0 / sc.output_scale
+        ns, p = self.nsensor, sc.preview_steps
+        obs = np.empty((len(ids), self.obs_dim))
+        obs[:, :ns] = meas * inv
+        obs[:, ns : ns + p + 1] = self.ref[k[:, None] + self.preview_offsets] * inv
+        obs[:, ns + p + 1] = self.prev_action[ids]
+        col = ns + p + 2
         if sc.history:
-            self.hist[ids] = np.roll(self.hist[ids], 1, axis=1)
-            self.hist[ids, 0] = np.concatenate([meas / scale, self.prev_action[ids, None]], axis=1)
-            parts.append(self.hist[ids].reshape(len(ids), -1))
+            h = self.hist[ids]
+            h[:, 1:] = h[:, :-1].copy()
+            h[:, 0, :ns], h[:, 0, ns] = meas * inv, self.prev_action[ids]
+            self.hist[ids] = h
+            obs[:, col : col + h[0].size] = h.reshape(len(ids), -1)
+            col += h[0].size
         if sc.privileged:
             unit = sc.action_scale * sc.spec.actuator_gain  # torque of a unit action
-            fr = force[:, self.fric_act] - self.sigma2[ids] * qvel[:, self.fric_dofs]
-            z = (
-                act[:, self.bristle_adr]
-                if len(self.bristle_adr)
-                else np.zeros((len(ids), len(self.fric_act)))
-            )
+            act, force = act[sel], force[sel]
+            nf = len(self.fric_act)
+            z = act[:, self.bristle_adr] if len(self.bristle_adr) else np.zeros((len(ids), nf))
             sigma0 = np.array([[f.sigma0 for f in self.params[i].friction] for i in ids]).reshape(
                 len(ids), -1
             )
-            parts += [truth[:, None] / scale, fr / unit, sigma0 * z / unit]
-        obs = np.concatenate(parts, axis=1)
-        return np.clip(np.nan_to_num(obs, nan=0.0), -OBS_CLIP, OBS_CLIP).astype(np.float32), truth
+            obs[:, col] = truth * inv
+            obs[:, col + 1 : col + 1 + nf] = (
+                force[:, self.fric_act] - self.sigma2[ids] * qvel[:, self.fric_dofs]
+            ) / unit
+            obs[:, col + 1 + nf :] = sigma0 * z / unit
+        if not np.abs(obs).max() <= OBS_CLIP:  # also catches NaN
+            obs = np.clip(np.nan_to_num(obs, nan=0.0), -OBS_CLIP, OBS_CLIP)
+        return obs.astype(np.float32), truth
 
     # ------------------------------------------------------------------ ground truth and metrics
     def ground_truth(self, i: int) -> dict:

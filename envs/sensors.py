@@ -35,9 +35,19 @@ class SensorArrays:
             noise_std=np.array([x.noise_std for x in s]),
         )
 
+    @property
+    def all_encoders(self) -> bool:
+        return bool(self.encoder.all())
+
+    @property
+    def any_noise(self) -> bool:
+        return bool(np.any(self.noise_std > 0))
+
     def noise(self, rngs: list[np.random.Generator], scale: np.ndarray) -> np.ndarray:
         """(n, nsensor) noise; each simulation draws from its own stream, only when its noise is on."""
         out = np.zeros((len(rngs), len(self.dofs)))
+        if not self.any_noise:
+            return out
         for i, rng in enumerate(rngs):
             std = self.noise_std * scale[i]
             if np.any(std > 0):
@@ -47,11 +57,16 @@ class SensorArrays:
     def measure(self, qpos: np.ndarray, qvel: np.ndarray, noise: np.ndarray) -> np.ndarray:
         """(n, nsensor) readings. Encoder: floor((θ + noise)/resolution)·resolution (an incremental counter
         counts whole lines passed). Tacho: gain·ω + ripple·sin(n·θ) + noise (V)."""
-        th, om = qpos[:, self.dofs], qvel[:, self.dofs]
+        th = qpos[:, self.dofs]
         enc = np.floor((th + noise) / self.resolution) * self.resolution
-        tacho = self.gain * om + self.ripple_amp * np.sin(self.ripple_n * th) + noise
+        if self.all_encoders:
+            return enc
+        tacho = self.gain * qvel[:, self.dofs] + noise
+        if np.any(self.ripple_amp):
+            tacho += self.ripple_amp * np.sin(self.ripple_n * th)
         return np.where(self.encoder, enc, tacho)
 
-    def truth(self, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
-        """(n, nsensor) noise- and quantisation-free values: θ (rad) or gain·ω (V)."""
-        return np.where(self.encoder, qpos[:, self.dofs], self.gain * qvel[:, self.dofs])
+    def truth(self, qpos: np.ndarray, qvel: np.ndarray, sensor: int) -> np.ndarray:
+        """(n,) noise- and quantisation-free value of one sensor: θ (rad) or gain·ω (V)."""
+        d = self.dofs[sensor]
+        return qpos[:, d].copy() if self.encoder[sensor] else self.gain[sensor] * qvel[:, d]
