@@ -28,6 +28,7 @@ class SingleBackend:
 
     def __init__(self, model: mujoco.MjModel, scenario: Scenario, idx: ModelIndex):
         self.model, self.data, self.sc, self.idx, self.n = model, mujoco.MjData(model), scenario, idx, 1
+        self._good, self._bad = np.array([False]), np.array([True])
 
     def apply(self, ids: np.ndarray, params: list[EpisodeParams]) -> None:
         apply(self.model, self.data, self.sc.spec, self.idx, params[0])
@@ -44,7 +45,7 @@ class SingleBackend:
         """Advance simulations ids one control period; returns their 'diverged' flags."""
         self.data.ctrl[self.idx.drive_ctrl] = command[0]
         mujoco.mj_step(self.model, self.data, self.sc.spec.substeps)
-        return np.array([self.data.warning[BADQACC].number > 0])
+        return self._bad if self.data.warning[BADQACC].number > 0 else self._good
 
     def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         d = self.data
@@ -140,6 +141,7 @@ class ServoCore:
         self.noise_rng: list[np.random.Generator] = [np.random.default_rng(0)] * n
         self.jitter_rng: list[np.random.Generator] = [np.random.default_rng(0)] * n
         self.diverged = np.zeros(n, dtype=bool)
+        self.ended = np.zeros(n, dtype=bool)
         self.obs_dim = (
             self.nsensor
             + 2
@@ -179,6 +181,7 @@ class ServoCore:
         self.prev_action[ids] = 0.0
         self.hist[ids] = 0.0
         self.diverged[ids] = False
+        self.ended[ids] = False
         self.log_u[ids] = 0.0
         obs, _ = self._observe(ids)
         return obs
@@ -190,12 +193,12 @@ class ServoCore:
         """One control period for simulations ids (default all); the others do not move. action: one
         row per simulation in ids, in [-1, 1] (clipped). Returns arrays over ids."""
         ids = self._all if ids is None else np.asarray(ids)
-        if (self.k[ids] >= self.sc.episode_steps).any() or self.diverged[ids].any():
+        if self.ended[ids].any():
             raise RuntimeError("the episode has ended (truncated or diverged): call reset() first")
         action = np.asarray(action, dtype=float).reshape(len(ids), -1)[:, 0]
-        if not np.all(np.isfinite(action)):
+        if not np.isfinite(action).all():
             raise ValueError(f"actions must be finite, got {action}")
-        a = np.clip(action, -1.0, 1.0)
+        a = np.minimum(np.maximum(action, -1.0), 1.0)
         command = a * self.sc.action_scale
         jittered = ids[self.jitter_steps[ids] > 0]
         if len(jittered):
@@ -216,11 +219,12 @@ class ServoCore:
         }
         reward = terms["reward_tracking"] + terms["reward_effort"] + terms["reward_smoothness"]
         diverged = self.diverged[ids]
-        if diverged.any() or not np.isfinite(reward).all():
+        if diverged.any():  # otherwise the reward is finite: truth was sanitised and a is clipped
             reward = np.where(diverged, -OBS_CLIP, np.nan_to_num(reward, nan=-OBS_CLIP))
         self.log_u[ids, k] = command
         terminated = diverged.copy()
         truncated = (k >= self.sc.episode_steps) & ~terminated
+        self.ended[ids] = terminated | truncated
         info = {
             **terms,
             "command": command,
@@ -244,7 +248,7 @@ class ServoCore:
         meas = self.sensors.measure(qpos, qvel, noise)
         truth = self.sensors.truth(qpos, qvel, self.sc.tracked_sensor)
         vel = qvel[:, self.track_dof]
-        if not np.isfinite(truth).all():
+        if not np.isfinite(truth).all():  # a diverged simulation: log zeros
             truth, vel = np.nan_to_num(truth), np.nan_to_num(vel)
         k = self.k[ids]
         self.log_y[ids, k] = truth
@@ -284,12 +288,13 @@ class ServoCore:
     # ------------------------------------------------------------------ ground truth and metrics
     def ground_truth(self, i: int) -> dict:
         """True states of simulation i: joint angles/velocities, bristle states, friction torques."""
-        qpos, qvel, act, force = (x[i] for x in self.backend.state())
+        qpos, qvel, act, force = self.backend.state()
+        qv = qvel[i]
         return {
-            "qpos": qpos.copy(),
-            "qvel": qvel.copy(),
-            "bristle": act[self.bristle_adr].copy(),
-            "friction_torque": force[self.fric_act] - self.sigma2[i] * qvel[self.fric_dofs],
+            "qpos": qpos[i].copy(),
+            "qvel": qv.copy(),
+            "bristle": act[i, self.bristle_adr],
+            "friction_torque": force[i, self.fric_act] - self.sigma2[i] * qv[self.fric_dofs],
         }
 
     def params_dict(self, i: int) -> dict:

@@ -35,13 +35,10 @@ class SensorArrays:
             noise_std=np.array([x.noise_std for x in s]),
         )
 
-    @property
-    def all_encoders(self) -> bool:
-        return bool(self.encoder.all())
-
-    @property
-    def any_noise(self) -> bool:
-        return bool(np.any(self.noise_std > 0))
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "all_encoders", bool(self.encoder.all()))
+        object.__setattr__(self, "any_noise", bool(np.any(self.noise_std > 0)))
+        object.__setattr__(self, "any_ripple", bool(np.any(self.ripple_amp)))
 
     def noise(self, rngs: list[np.random.Generator], scale: np.ndarray) -> np.ndarray:
         """(n, nsensor) noise; each simulation draws from its own stream, only when its noise is on."""
@@ -58,11 +55,11 @@ class SensorArrays:
         """(n, nsensor) readings. Encoder: floor((θ + noise)/resolution)·resolution (an incremental counter
         counts whole lines passed). Tacho: gain·ω + ripple·sin(n·θ) + noise (V)."""
         th = qpos[:, self.dofs]
-        enc = np.floor((th + noise) / self.resolution) * self.resolution
+        enc = np.floor((th + noise if self.any_noise else th) / self.resolution) * self.resolution
         if self.all_encoders:
             return enc
         tacho = self.gain * qvel[:, self.dofs] + noise
-        if np.any(self.ripple_amp):
+        if self.any_ripple:
             tacho += self.ripple_amp * np.sin(self.ripple_n * th)
         return np.where(self.encoder, enc, tacho)
 

@@ -103,7 +103,7 @@ class ServoEnv(gym.Env, EzPickle):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         obs, reward, term, trunc, info = self.core.step(np.asarray(action, dtype=float).reshape(1, -1))
-        out = {k: (v[0] if isinstance(v, np.ndarray) and v.ndim else v) for k, v in info.items()}
+        out = {k: v[0] for k, v in info.items()}
         out.update(self._truth())
         if term[0] or trunc[0]:
             out["episode_metrics"] = self.core.metrics(0)

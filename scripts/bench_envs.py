@@ -25,16 +25,29 @@ from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.vector import ServoVectorEnv
 
 
+def _once(fn: Callable[[], None], seconds: float) -> float:
+    n, t0 = 0, time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        fn()
+        n += 1
+    return n / (time.perf_counter() - t0)
+
+
 def rate(fn: Callable[[], None], seconds: float, per_call: int = 1) -> float:
     """Best of 3 runs of ~seconds/3: calls of fn per second times per_call."""
-    best = 0.0
-    for _ in range(3):
-        n, t0 = 0, time.perf_counter()
-        while time.perf_counter() - t0 < seconds / 3:
-            fn()
-            n += 1
-        best = max(best, n * per_call / (time.perf_counter() - t0))
-    return best
+    return max(_once(fn, seconds / 3) for _ in range(3)) * per_call
+
+
+def paired(
+    fa: Callable[[], None], fb: Callable[[], None], seconds: float, per_call: int = 1, rounds: int = 8
+) -> tuple[float, float]:
+    """Rates of fa and fb measured in alternating short rounds (so both see the same machine
+    conditions), best round of each, times per_call."""
+    a = b = 0.0
+    for _ in range(rounds):
+        a = max(a, _once(fa, seconds / (2 * rounds)))
+        b = max(b, _once(fb, seconds / (2 * rounds)))
+    return a * per_call, b * per_call
 
 
 def bench_single(scenario: str, seconds: float) -> tuple[float, float]:
@@ -55,7 +68,7 @@ def bench_single(scenario: str, seconds: float) -> tuple[float, float]:
         data.ctrl[ctrl_i] = -0.0 * data.qpos[dof]  # Python control law, then the physics
         mujoco.mj_step(model, data, n)
 
-    return rate(env_step, seconds), rate(bare_step, seconds)
+    return paired(env_step, bare_step, seconds)
 
 
 def bench_vector(scenario: str, num_envs: int, seconds: float) -> tuple[float, float]:
@@ -71,7 +84,7 @@ def bench_vector(scenario: str, num_envs: int, seconds: float) -> tuple[float, f
         ctrl[:, ctrl_i] = -0.0 * qpos[:, dof]
         batch.step(nstep=n)
 
-    return rate(lambda: venv.step(actions), seconds, num_envs), rate(bare, seconds, num_envs)
+    return paired(lambda: venv.step(actions), bare, seconds, num_envs)
 
 
 def main() -> None:
@@ -79,7 +92,7 @@ def main() -> None:
     ap.add_argument(
         "--scenarios", nargs="*", default=["kang_regulation", "m220_regulation", "flexible_speed_step"]
     )
-    ap.add_argument("--seconds", type=float, default=2.0, help="measuring time per figure")
+    ap.add_argument("--seconds", type=float, default=4.0, help="measuring time per pair of figures")
     args = ap.parse_args()
     print(f"{'scenario':24s} {'what':10s} {'env steps/s':>12s} {'bare steps/s':>13s} {'ratio':>6s}")
     for sc in args.scenarios:
