@@ -1,1 +1,1 @@
-"""placeholder"""
+"""Everything that acts (frictiongym.agents): controllers (classical and learned), evaluation, leaderboard."""

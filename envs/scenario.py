@@ -105,6 +105,13 @@ def _reference(r: dict) -> Reference:
     )
 
 
+def _deep_update(base: dict, extra: dict) -> dict:
+    """base updated recursively with extra (no key checks: the plant preset checks them)."""
+    for k, v in extra.items():
+        base[k] = _deep_update(dict(base.get(k) or {}), v) if isinstance(v, dict) else v
+    return base
+
+
 def _ranges(value: Any, nv: int, field_: str) -> np.ndarray:
     if not isinstance(value, list) or len(value) != nv:
         raise ConfigError(field_, f"expected {nv} [low, high] pairs (one per joint), got {value!r}")
@@ -115,7 +122,11 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
     """Load a scenario by name or path; `overrides` deep-merges YAML keys, kwargs set top-level keys
     (e.g. control_period_s=0.04, randomize=True, episode_s=5)."""
     cfg = load_yaml(name_or_path, kind="scenarios")
+    overrides = dict(overrides or {})
+    # plant overrides are checked against the plant preset (plant_spec), not the scenario's own dict
+    plant_extra = overrides.pop("plant_overrides", None) or {}
     cfg = merge(cfg, overrides)
+    cfg["plant_overrides"] = _deep_update(dict(cfg.get("plant_overrides") or {}), plant_extra)
     cfg = merge(cfg, {k: v for k, v in kwargs.items() if v is not None})
     name = Path(str(name_or_path)).stem
     period = positive(cfg["control_period_s"], "control_period_s")

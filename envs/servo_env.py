@@ -46,6 +46,18 @@ OBSERVATION_DOC = """
 """
 
 
+def decode_observation(scenario: Scenario, obs: np.ndarray) -> dict[str, Any]:
+    """Physical readings from an observation: sensors (rad or V), reference, preview, held command."""
+    n, s = len(scenario.spec.sensors), scenario.output_scale
+    p = scenario.preview_steps
+    return {
+        "sensors": dict(zip([x.name for x in scenario.spec.sensors], obs[:n] * s, strict=True)),
+        "reference": float(obs[n] * s),
+        "preview": obs[n + 1 : n + 1 + p] * s,
+        "previous_command": float(obs[n + 1 + p] * scenario.action_scale),
+    }
+
+
 class ServoEnv(gym.Env, EzPickle):
     __doc__ = "A friction-dominated servo under sampled-data control (frictiongym)." + OBSERVATION_DOC
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 25}
@@ -136,15 +148,8 @@ class ServoEnv(gym.Env, EzPickle):
         return float(np.clip(np.asarray(action, dtype=float).ravel()[0], -1, 1) * self.scenario.action_scale)
 
     def decode_observation(self, obs: np.ndarray) -> dict[str, Any]:
-        """Physical readings from an observation: sensors (rad or V), reference, preview, previous command."""
-        sc, n = self.scenario, len(self.scenario.spec.sensors)
-        s = sc.output_scale
-        return {
-            "sensors": dict(zip([x.name for x in sc.spec.sensors], obs[:n] * s, strict=True)),
-            "reference": float(obs[n] * s),
-            "preview": obs[n + 1 : n + 1 + sc.preview_steps] * s,
-            "previous_command": float(obs[n + 1 + sc.preview_steps] * sc.action_scale),
-        }
+        """Physical readings from an observation (see decode_observation)."""
+        return decode_observation(self.scenario, obs)
 
     def plot_episode(self, path: str | Path | None = None):
         """Matplotlib figure of the current episode: reference and true output, error, command."""
