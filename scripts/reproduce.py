@@ -17,6 +17,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 from tqdm import tqdm
 
+from frictiongym.agents import report as baselines
 from frictiongym.envs import checks, report
 from frictiongym.envs.identification import m220_step_counts
 from frictiongym.envs.plants import plant_config, plant_spec
@@ -87,15 +88,26 @@ def markdown(rows: list[dict], figs: list[str]) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, default=Path("out/reproduce"), help="output folder")
-    ap.add_argument("--sections", nargs="*", choices=list(report.SECTIONS), help="subset of sections")
+    ap.add_argument(
+        "--sections", nargs="*", choices=[*report.SECTIONS, "kang_baselines"], help="subset of sections"
+    )
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     rows = []
-    for s in tqdm(args.sections or list(report.SECTIONS), desc="reproducing", unit="section"):
-        rows += report.all_rows([s])
-    figs = figures(args.out)
+    sections = args.sections or [*report.SECTIONS, "kang_baselines"]
+    for s in tqdm(sections, desc="reproducing", unit="section"):
+        if s != "kang_baselines":
+            rows += report.all_rows([s])
+    figs = figures(args.out) if set(sections) & set(report.SECTIONS) else []
+    if "kang_baselines" in sections:
+        runs = baselines.kang_baseline_runs()
+        rows += list(baselines.kang_rows(runs))
+        figs += baselines.kang_figures(runs, args.out)
+        findings = baselines.kang_findings(runs)
+    else:
+        findings = ""
     (args.out / "report.json").write_text(json.dumps(rows, indent=1))
-    (args.out / "report.md").write_text(markdown(rows, figs))
+    (args.out / "report.md").write_text(markdown(rows, figs) + "\n" + findings)
     failed = [r["id"] for r in rows if not r["pass"]]
     print(f"{len(rows) - len(failed)}/{len(rows)} rows pass; report in {args.out / 'report.md'}")
     for r in failed:

@@ -1,0 +1,81 @@
+"""Classical baselines behave as their papers say on the simulated plants."""
+
+import math
+
+import numpy as np
+import pytest
+
+from frictiongym.agents.base import EpisodeContext
+from frictiongym.agents.classical import PD, PID, RDFC, Southward, design_pid
+from frictiongym.agents.evaluate import evaluate, run_episode
+from frictiongym.envs.plants import plant_spec
+from frictiongym.envs.scenario import load_scenario
+from frictiongym.envs.suites import Episode
+
+KANG = Episode("kang_regulation", 0, False)
+
+
+def test_kang_pd_gains_follow_from_the_document():
+    sc = load_scenario("kang_regulation")
+    g = design_pid(EpisodeContext(sc, sc.spec), integral=False)
+    J, c = sc.spec.joints[0].inertia, sc.spec.joints[0].friction.sigma2
+    assert g.kp == pytest.approx(0.20667 * 180 / math.pi)  # N·m/rad, resolved K_p
+    wn = math.sqrt(g.kp / J)
+    assert wn / (2 * math.pi) == pytest.approx(0.5, rel=0.01)  # ω_n = 0.5 Hz, §6
+    assert (g.kd + c) / (2 * wn * J) == pytest.approx(0.83)  # ζ incl. viscous friction
+
+
+def test_pd_sticks_inside_the_equilibrium_region():
+    e = math.degrees(run_episode(PD(), KANG, keep_log=True).log["output"][-1])
+    assert -8.64 <= e <= 6.97 and abs(e) > 0.05  # eq. (6): a steady error that PD cannot remove
+
+
+def test_southward_limit_cycle_grows_with_the_sampling_period():
+    amp = [
+        run_episode(Southward(), KANG, control_period_s=T).metrics["limit_cycle_amp"]
+        for T in (0.005, 0.02, 0.04)
+    ]
+    res = plant_spec("kang_robot").sensors[0].resolution
+    assert amp[1] > 10 * res  # sustained at 20 ms (§6, Fig. 8)
+    assert amp[0] < amp[1] < amp[2]
+
+
+@pytest.mark.parametrize("delta", [0.02, 0.04])
+def test_rdfc_converges_into_the_dead_band_and_switches_off(delta):
+    r = run_episode(RDFC(delta), KANG, keep_log=True)
+    e = math.degrees(r.log["output"][-1])
+    assert abs(e) <= delta  # Theorem 2: S_δ is asymptotically stable
+    assert np.all(r.log["command"][-25:] == 0.0)  # inside the dead band the compensation is off
+    assert r.metrics["limit_cycle_amp"] == 0.0
+
+
+def test_rdfc_brings_its_analog_rate_loop_as_plant_hardware():
+    sc = load_scenario("kang_regulation")
+    hw = RDFC().plant_overrides(sc)
+    kd = design_pid(EpisodeContext(sc, sc.spec), integral=False).kd
+    assert hw["actuator"]["rate_feedback_nm_s_per_deg"] == pytest.approx(kd * math.pi / 180)
+
+
+def test_friction_knowledge_is_configurable():
+    """A compensator that underestimates static friction by half cannot push the rotor out of the
+    stick region: it stalls outside the dead band."""
+    r = run_episode(RDFC(0.02), KANG, keep_log=True, knowledge={"static_friction_scale": 0.5})
+    assert abs(math.degrees(r.log["output"][-1])) > 0.02
+
+
+def test_pid_integrator_removes_the_m220_steady_error_and_antiwindup_limits_overshoot():
+    ep = Episode("m220_regulation", 0, False)
+    pd, pid = run_episode(PD(), ep), run_episode(PID(), ep)
+    assert pid.metrics["final_error"] < pd.metrics["final_error"]
+    assert pid.metrics["overshoot_pct"] < 50.0
+
+
+def test_evaluate_runs_only_applicable_controllers():
+    eps = [Episode("flexible_speed_step", 0, False), Episode("kang_regulation", 0, False)]
+    res = evaluate([PD(), PID(), RDFC()], eps, progress=False)
+    assert [(r.controller, r.scenario) for r in res] == [
+        ("PID", "flexible_speed_step"),
+        ("PD", "kang_regulation"),
+        ("PID", "kang_regulation"),
+        ("RDFC", "kang_regulation"),
+    ]
