@@ -8,7 +8,6 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
-from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.suites import Episode
@@ -51,13 +50,10 @@ def run_episode(
     hw = controller.plant_overrides(base)
     overrides = {"plant_overrides": hw} if hw else None
     env = ServoEnv(episode.scenario, randomize=episode.randomize, overrides=overrides, **env_kwargs)
-    sc = env.scenario
-    nominal = plant_spec(
-        sc.spec.name, {"sampling": {"control_period_s": sc.control_period}} | hw, sc.spec.friction_model
-    )
+    sc = env.scenario  # its spec holds the nominal (document) plant; the episode's draw is hidden
     know = {**controller_config()["knowledge"], **(knowledge or {})}
     obs, _ = env.reset(seed=episode.seed)
-    controller.reset(EpisodeContext(sc, nominal, know))
+    controller.reset(EpisodeContext(sc, sc.spec, know))
     total, done, info = 0.0, False, {}
     while not done:
         obs, reward, term, trunc, info = env.step(controller.act(obs))

@@ -79,3 +79,13 @@ def test_evaluate_runs_only_applicable_controllers():
         ("PID", "kang_regulation"),
         ("RDFC", "kang_regulation"),
     ]
+
+
+def test_flexible_pi_tracks_the_speed_step_at_40ms():
+    """Designed on the rigid body with the colocated high-frequency gain in mind (controllers.yaml)."""
+    r = run_episode(PID(), Episode("flexible_speed_step", 0, False), keep_log=True)
+    g = r.log
+    at = lambda t: g["output"][np.searchsorted(g["t"], t)]  # noqa: E731
+    assert at(4.9) == pytest.approx(1.0, abs=0.02)  # y1 follows y_r = 1 V before the step down
+    assert np.max(np.abs(g["command"])) < 10.0  # no saturation
+    assert r.metrics["final_error"] < 0.01
