@@ -46,10 +46,11 @@ def run_episode(
 ) -> EpisodeResult:
     """Run one suite episode. The controller's own hardware (plant_overrides) is added to the scenario;
     everything random comes from the episode's seed, so every controller sees the same episode."""
-    base = load_scenario(episode.scenario, randomize=episode.randomize, **env_kwargs)
+    user = dict(env_kwargs.pop("overrides", None) or {})
+    base = load_scenario(episode.scenario, user, randomize=episode.randomize, **env_kwargs)
     hw = controller.plant_overrides(base)
-    overrides = {"plant_overrides": hw} if hw else None
-    env = ServoEnv(episode.scenario, randomize=episode.randomize, overrides=overrides, **env_kwargs)
+    overrides = {**user, "plant_overrides": {**user.get("plant_overrides", {}), **hw}} if hw else user
+    env = ServoEnv(episode.scenario, randomize=episode.randomize, overrides=overrides or None, **env_kwargs)
     sc = env.scenario  # its spec holds the nominal (document) plant; the episode's draw is hidden
     know = {**controller_config()["knowledge"], **(knowledge or {})}
     obs, _ = env.reset(seed=episode.seed)

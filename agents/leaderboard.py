@@ -6,6 +6,8 @@ from __future__ import annotations
 import csv
 import math
 from collections import defaultdict
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -15,8 +17,17 @@ from frictiongym.envs.suites import load_suite
 from .base import Controller
 from .classical import PD, PID, RDFC, Southward
 from .evaluate import EpisodeResult, evaluate
+from .wallenborg import StateFeedback
 
-CONTROLLERS: dict[str, type[Controller]] = {"PD": PD, "PID": PID, "Southward": Southward, "RDFC": RDFC}
+CONTROLLERS: dict[str, Callable[[], Controller]] = {
+    "PD": PD,
+    "PID": PID,
+    "Southward": Southward,
+    "RDFC": RDFC,
+    "SF": StateFeedback,
+    "SF+relay": partial(StateFeedback, "relay"),
+    "SF+highgain": partial(StateFeedback, "highgain"),
+}
 MAIN_METRICS = ("iae", "final_error", "limit_cycle_amp", "reversal_peak_error", "effort_rms")
 N_BOOT = 2000
 

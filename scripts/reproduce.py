@@ -89,14 +89,17 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", type=Path, default=Path("out/reproduce"), help="output folder")
     ap.add_argument(
-        "--sections", nargs="*", choices=[*report.SECTIONS, "kang_baselines"], help="subset of sections"
+        "--sections",
+        nargs="*",
+        choices=[*report.SECTIONS, "kang_baselines", "wallenborg"],
+        help="subset of sections",
     )
     args = ap.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     rows = []
-    sections = args.sections or [*report.SECTIONS, "kang_baselines"]
+    sections = args.sections or [*report.SECTIONS, "kang_baselines", "wallenborg"]
     for s in tqdm(sections, desc="reproducing", unit="section"):
-        if s != "kang_baselines":
+        if s in report.SECTIONS:
             rows += report.all_rows([s])
     figs = figures(args.out) if set(sections) & set(report.SECTIONS) else []
     if "kang_baselines" in sections:
@@ -106,6 +109,10 @@ def main(argv: list[str] | None = None) -> int:
         findings = baselines.kang_findings(runs)
     else:
         findings = ""
+    if "wallenborg" in sections:
+        wruns = baselines.wallenborg_runs()
+        rows += list(baselines.wallenborg_rows(wruns))
+        figs += baselines.wallenborg_figures(wruns, args.out)
     (args.out / "report.json").write_text(json.dumps(rows, indent=1))
     (args.out / "report.md").write_text(markdown(rows, figs) + "\n" + findings)
     failed = [r["id"] for r in rows if not r["pass"]]

@@ -1,0 +1,73 @@
+"""Wallenborg's state feedback + observer, designed from the plant parameters, against seed 002."""
+
+import numpy as np
+import pytest
+
+from frictiongym.agents.design import (
+    describing_function_cycle,
+    regulator_poles,
+    regulator_stability_boundary,
+    state_feedback_design,
+)
+from frictiongym.agents.evaluate import run_episode
+from frictiongym.agents.report import WALLENBORG_DESIGNS, wallenborg_published, window_cycle
+from frictiongym.agents.wallenborg import StateFeedback
+from frictiongym.envs.plants import plant_spec
+from frictiongym.envs.suites import Episode
+
+SPEC = plant_spec("flexible_servo")
+
+
+@pytest.mark.parametrize("key", list(WALLENBORG_DESIGNS))
+def test_gains_match_appendix_b(key):
+    w, sensor, h = WALLENBORG_DESIGNS[key]
+    d = state_feedback_design(SPEC, w, sensor=sensor, h=h)
+    ref = wallenborg_published()["gains"][key]
+    assert d.L.ravel() == pytest.approx(ref["L"], rel=0.01)
+    assert d.K.ravel() == pytest.approx(ref["K"], rel=0.01)
+    assert d.lr == pytest.approx(ref["lr"], rel=0.01)
+
+
+def test_closed_loop_and_observer_poles_are_where_they_were_placed():
+    d = state_feedback_design(SPEC, 12.0)
+    cl = np.sort_complex(np.linalg.eigvals(d.A - d.B @ d.L))
+    ob = np.sort_complex(np.linalg.eigvals(d.A - d.K @ d.C))
+    assert np.abs(cl) == pytest.approx([12.0] * 3, rel=1e-6)
+    assert np.abs(ob) == pytest.approx([18.0] * 3, rel=1e-6)
+
+
+def test_regulator_is_unstable_above_9_9_rad_s_colocated_and_below_5_5_non_colocated():
+    assert np.any(regulator_poles(SPEC, 12.0).real > 0) and np.all(regulator_poles(SPEC, 8.0).real < 0)
+    assert regulator_stability_boundary(SPEC, 8.0, 12.0) == pytest.approx(9.90, rel=0.01)
+    assert regulator_stability_boundary(SPEC, 1.0, 12.0, sensor="y2") == pytest.approx(5.5, rel=0.05)
+
+
+def test_describing_function_predicts_the_limit_cycle():
+    df = describing_function_cycle(SPEC, 12.0, 5e-4)
+    assert df["G"] == pytest.approx(-500, rel=0.05) and df["omega"] == pytest.approx(15.8, rel=0.02)
+    assert df["amplitude_v"] == pytest.approx(0.3, rel=0.1)
+    assert np.isnan(describing_function_cycle(SPEC, 8.0, 5e-4)["omega"])  # no crossing at ω_cl = 8
+
+
+def test_friction_causes_the_predicted_limit_cycle_and_compensation_removes_it():
+    lc = {
+        k: window_cycle(
+            run_episode(StateFeedback(**kw), Episode("flexible_speed_step_fast", 0, False), keep_log=True)
+        )
+        for k, kw in {"nominal": {}, "wcl8": {"w_cl": 8.0}, "relay": {"compensation": "relay"}}.items()
+    }
+    assert lc["nominal"]["limit_cycle_freq_hz"] == pytest.approx(2.5, rel=0.1)
+    assert lc["nominal"]["limit_cycle_amp"] == pytest.approx(0.3, rel=0.3)
+    assert lc["wcl8"]["limit_cycle_amp"] < 0.01
+    assert lc["relay"]["limit_cycle_amp"] < lc["nominal"]["limit_cycle_amp"] / 4
+
+
+def test_without_friction_there_is_no_limit_cycle():
+    """The oscillation is a friction effect (§4.3): the same loop on the friction-free plant is quiet."""
+    r = run_episode(
+        StateFeedback(),
+        Episode("flexible_zero_speed_fast", 0, False),
+        keep_log=True,
+        overrides={"friction_model": "none"},
+    )
+    assert window_cycle(r)["limit_cycle_amp"] < 1e-3
