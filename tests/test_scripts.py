@@ -19,6 +19,14 @@ REQUIRED = [
     "friction.sliding.m220.-5vs",
     "friction.presliding.flexible_servo",
     "friction.stickslip_period",
+    "kang.pd.final_error_deg",
+    "kang.southward.amp_deg.20ms",
+    "kang.rdfc.0.02.cycles",
+    "wallenborg.gains.digital_wcl12_y1",
+    "wallenborg.regulator_stability_limit",
+    "wallenborg.nyquist_crossing",
+    "wallenborg.df_amplitude",
+    "wallenborg.limit_cycle.wcl12_y1_highgain.amp_v",
 ]
 
 
