@@ -17,6 +17,7 @@ from frictiongym.envs.suites import load_suite
 from .base import Controller
 from .classical import PD, PID, RDFC, Southward
 from .evaluate import EpisodeResult, evaluate
+from .friction_comp import CoulombViscousFF, LuGreObserver
 from .wallenborg import StateFeedback
 
 CONTROLLERS: dict[str, Callable[[], Controller]] = {
@@ -27,6 +28,8 @@ CONTROLLERS: dict[str, Callable[[], Controller]] = {
     "SF": StateFeedback,
     "SF+relay": partial(StateFeedback, "relay"),
     "SF+highgain": partial(StateFeedback, "highgain"),
+    "LuGreObserver": LuGreObserver,
+    "CoulombViscousFF": CoulombViscousFF,
 }
 MAIN_METRICS = ("iae", "final_error", "limit_cycle_amp", "reversal_peak_error", "effort_rms")
 N_BOOT = 2000

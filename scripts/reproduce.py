@@ -113,6 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         wruns = baselines.wallenborg_runs()
         rows += list(baselines.wallenborg_rows(wruns))
         figs += baselines.wallenborg_figures(wruns, args.out)
+        findings += "\n" + baselines.wallenborg_findings(wruns)
     (args.out / "report.json").write_text(json.dumps(rows, indent=1))
     (args.out / "report.md").write_text(markdown(rows, figs) + "\n" + findings)
     failed = [r["id"] for r in rows if not r["pass"]]

@@ -89,3 +89,32 @@ def test_flexible_pi_tracks_the_speed_step_at_40ms():
     assert at(4.9) == pytest.approx(1.0, abs=0.02)  # y1 follows y_r = 1 V before the step down
     assert np.max(np.abs(g["command"])) < 10.0  # no saturation
     assert r.metrics["final_error"] < 0.01
+
+
+def test_lugre_observer_compensation_removes_kangs_steady_error():
+    from frictiongym.agents.friction_comp import LuGreObserver
+
+    pd, obs = run_episode(PD(), KANG), run_episode(LuGreObserver(), KANG)
+    assert obs.metrics["final_error"] < 0.01 * pd.metrics["final_error"]
+
+
+def test_lugre_observer_estimate_converges_to_the_sliding_friction():
+    """At constant speed ẑ settles at g(v)/σ0·sgn(v), so F̂ = g(v) + σ2 v (the LuGre steady state)."""
+    from frictiongym.agents.friction_comp import LuGreObserver
+
+    c = LuGreObserver()
+    sc = load_scenario("kang_regulation")
+    c.reset(EpisodeContext(sc, sc.spec, {}))
+    v = 0.3
+    for _ in range(50):
+        F = c.friction_estimate(v, 0.0)
+    assert pytest.approx(-c.p.steady_state(v) + c.p.bias, rel=1e-6) == F
+
+
+def test_coulomb_viscous_feedforward_reduces_reversal_errors():
+    from frictiongym.agents.friction_comp import CoulombViscousFF
+
+    ep = Episode("m220_reversal_tracking", 0, False)
+    pd, ff = run_episode(PD(), ep), run_episode(CoulombViscousFF(), ep)
+    assert ff.metrics["reversal_peak_error"] < 0.5 * pd.metrics["reversal_peak_error"]
+    assert ff.metrics["iae"] < pd.metrics["iae"]

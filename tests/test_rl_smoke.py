@@ -50,3 +50,19 @@ def test_short_sac_run_beats_random_and_zero_policies():
     random = np.mean([_episode_return(lambda o: rng.uniform(-1, 1, 1).astype(np.float32), s) for s in seeds])
     zero = np.mean([_episode_return(lambda o: np.zeros(1, np.float32), s) for s in seeds])
     assert learned > 0.5 * zero > random
+
+
+def test_a_learned_policy_runs_through_the_same_evaluation_loop():
+    from frictiongym.agents.evaluate import evaluate
+    from frictiongym.agents.learned import SB3Policy
+    from frictiongym.envs.suites import Episode
+
+    env = gym.make("frictiongym/KangRobot-v0", episode_s=0.4)
+    model = PPO("MlpPolicy", env, n_steps=64, batch_size=32, seed=0).learn(64)
+    res = evaluate(
+        [SB3Policy(model, ("kang_robot",), "ppo-tiny")],
+        [Episode("kang_regulation", 0, False), Episode("m220_regulation", 0, False)],
+        progress=False,
+    )
+    assert [(r.controller, r.scenario) for r in res] == [("ppo-tiny", "kang_regulation")]
+    assert np.isfinite(res[0].metrics["iae"])

@@ -1,0 +1,37 @@
+"""Learned controllers behind the same interface as the classical ones, so the leaderboard compares like
+with like: a stable-baselines3 policy acting on the env's observation."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, ClassVar
+
+import numpy as np
+
+from .base import Controller, EpisodeContext
+
+
+class SB3Policy(Controller):
+    """A trained SB3 model (any algorithm with predict) for the plants it was trained on; deterministic."""
+
+    name: ClassVar[str] = "SB3"
+
+    def __init__(self, model: Any, plants: tuple[str, ...], name: str = "SB3"):
+        self.model, self.plants, self.name = model, plants, name  # instance values shadow the class ones
+
+    @classmethod
+    def load(cls, path: str | Path, algo: str, plants: tuple[str, ...], name: str | None = None) -> SB3Policy:
+        """Load a saved model, e.g. SB3Policy.load("sac_kang.zip", "SAC", ("kang_robot",))."""
+        import stable_baselines3
+
+        return cls(getattr(stable_baselines3, algo).load(str(path)), plants, name or Path(path).stem)
+
+    def reset(self, ctx: EpisodeContext) -> None:
+        self.ctx = ctx
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        action, _ = self.model.predict(obs, deterministic=True)
+        return np.asarray(action, dtype=np.float32).reshape(1)
+
+    def params(self) -> dict[str, Any]:
+        return {"algorithm": type(self.model).__name__}
