@@ -188,3 +188,14 @@ def describing_function_cycle(spec: PlantSpec, w_cl: float, F: float, sensor: st
     wc = brentq(lambda x: friction_loop_response(spec, w_cl, x, sensor)[0].imag, w[i], w[i + 1])
     g = friction_loop_response(spec, w_cl, wc, sensor)[0].real
     return {"omega": float(wc), "G": float(g), "amplitude_v": float(-4 * F * g / np.pi)}
+
+
+def regulator_transfer(
+    spec: PlantSpec, w_cl: float, zeta: float = 0.7, alpha: float = 1.5, sensor: str = "y1"
+):
+    """The continuous regulator (4.1)-(4.2) as a python-control system from the measured y to u (y_r = 0):
+    x̂' = (A - BL - KC) x̂ + K y, u = -L x̂. Its poles are the regulator poles of §6.1."""
+    import control
+
+    d = state_feedback_design(spec, w_cl, zeta, alpha, sensor)
+    return control.ss(d.A - d.B @ d.L - d.K @ d.C, d.K, -d.L, 0)

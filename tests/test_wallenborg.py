@@ -71,3 +71,13 @@ def test_without_friction_there_is_no_limit_cycle():
         overrides={"friction_model": "none"},
     )
     assert window_cycle(r)["limit_cycle_amp"] < 1e-3
+
+
+def test_regulator_transfer_function_has_the_regulator_poles_and_static_gain():
+    from frictiongym.agents.design import regulator_transfer
+
+    reg = regulator_transfer(SPEC, 12.0)
+    assert np.sort_complex(reg.poles()) == pytest.approx(np.sort_complex(regulator_poles(SPEC, 12.0)))
+    d = state_feedback_design(SPEC, 12.0)
+    dc = (-d.L @ np.linalg.solve(-(d.A - d.B @ d.L - d.K @ d.C), d.K)).item()
+    assert reg.dcgain() == pytest.approx(dc)
