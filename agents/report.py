@@ -18,6 +18,16 @@ from .evaluate import EpisodeResult, run_episode
 KANG = Episode("kang_regulation", 0, False)  # θ(0) = 20 deg, set-point 0, 20 ms, nominal plant
 
 
+def _save(fig, out: Path, fname: str) -> str:
+    """Write a figure as PNG, close it, return its file name."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    fig.savefig(out / fname, dpi=110)
+    plt.close(fig)
+    return fname
+
+
 def _deg(x: float) -> float:
     return math.degrees(x)
 
@@ -124,10 +134,7 @@ def kang_figures(runs: dict[str, EpisodeResult], out: Path) -> list[str]:
         a1.set(ylabel="θ (deg)", title=title)
         a1.legend()
         a2.set(ylabel="θ (deg), zoom", xlabel="t (s)", ylim=(-0.06, 0.06))
-        fig.tight_layout()
-        fig.savefig(out / fname, dpi=110)
-        plt.close(fig)
-        names.append(fname)
+        names.append(_save(fig, out, fname))
     return names
 
 
@@ -322,10 +329,7 @@ def wallenborg_figures(runs: dict[str, EpisodeResult], out: Path) -> list[str]:
         ax.plot(g["t"], g["reference"], "k:", label="y_r")
         ax.set(xlabel="t (s)", ylabel="V", title=title)
         ax.legend(fontsize=8)
-        fig.tight_layout()
-        fig.savefig(out / fname, dpi=110)
-        plt.close(fig)
-        names.append(fname)
+        names.append(_save(fig, out, fname))
     return names
 
 

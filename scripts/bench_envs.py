@@ -50,15 +50,22 @@ def paired(
     return a * per_call, b * per_call
 
 
-def bench_single(scenario: str, seconds: float) -> tuple[float, float]:
-    env = ServoEnv(scenario)
+def stepper(env: gym.Env) -> Callable[[], None]:
+    """One env step with a zero action, resetting at the end of an episode."""
     env.reset(seed=0)
     action = np.zeros(1, dtype=np.float32)
 
-    def env_step() -> None:
+    def step() -> None:
         _, _, term, trunc, _ = env.step(action)
         if term or trunc:
             env.reset()
+
+    return step
+
+
+def bench_single(scenario: str, seconds: float) -> tuple[float, float]:
+    env = ServoEnv(scenario)
+    env_step = stepper(env)
 
     core = env.core
     model, data = core.model, mujoco.MjData(core.model)
@@ -102,15 +109,7 @@ def main() -> None:
             e, b = bench_vector(sc, n, args.seconds)
             print(f"{sc:24s} {f'vector {n}':10s} {e:12.0f} {b:13.0f} {e / b:6.2f}")
     try:
-        pend = gym.make("InvertedPendulum-v5")
-        pend.reset(seed=0)
-        a = np.zeros(1, dtype=np.float32)
-
-        def pstep() -> None:
-            _, _, term, trunc, _ = pend.step(a)
-            if term or trunc:
-                pend.reset()
-
+        pstep = stepper(gym.make("InvertedPendulum-v5"))
         print(f"{'InvertedPendulum-v5':24s} {'single':10s} {rate(pstep, args.seconds):12.0f}")
     except Exception as err:  # Gymnasium's MuJoCo envs are optional
         print(f"InvertedPendulum-v5 unavailable: {err}")
