@@ -7,6 +7,7 @@ n = N on a mujoco.batch.Batch. Both run the same arithmetic, so the same seeds g
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict
 
 import mujoco
@@ -142,6 +143,26 @@ class ServoCore:
         self.jitter_rng: list[np.random.Generator] = [np.random.default_rng(0)] * n
         self.diverged = np.zeros(n, dtype=bool)
         self.ended = np.zeros(n, dtype=bool)
+        # plain-Python copies for the n = 1 fast path (step_single)
+        self._fast = (
+            n == 1 and not batch and not sc.history and not sc.privileged and not self.sensors.any_ripple
+        )
+        self._ref = self.ref.tolist()
+        self._fric = [(int(a), int(d)) for a, d in zip(self.fric_act, self.fric_dofs, strict=True)]
+        self._log_y0, self._log_v0, self._log_u0 = self.log_y[0], self.log_v[0], self.log_u[0]  # row views
+        if self._fast:  # a live view of the MjData's warning counter (reset with it)
+            self._badqacc = self.backend.data.warning[BADQACC]
+        self._t = self.t.tolist()
+        self._sens = [
+            (int(d), bool(e), float(r), float(g))
+            for d, e, r, g in zip(
+                self.sensors.dofs,
+                self.sensors.encoder,
+                self.sensors.resolution,
+                self.sensors.gain,
+                strict=True,
+            )
+        ]
         self.obs_dim = (
             self.nsensor
             + 2
@@ -215,7 +236,7 @@ class ServoCore:
         terms = {
             "reward_tracking": -w["tracking"] * np.minimum(e * e, OBS_CLIP),
             "reward_effort": -w["effort"] * a * a,
-            "reward_smoothness": -w["smoothness"] * (a - a_prev) ** 2,
+            "reward_smoothness": -w["smoothness"] * ((a - a_prev) * (a - a_prev)),
         }
         reward = terms["reward_tracking"] + terms["reward_effort"] + terms["reward_smoothness"]
         diverged = self.diverged[ids]
@@ -234,6 +255,89 @@ class ServoCore:
             "diverged": diverged.copy(),
         }
         return obs, reward, terminated, truncated, info
+
+    def step_single(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+        """step() for one simulation on an MjData, in plain Python floats: the same IEEE operations in the
+        same order as the vectorised path (tests check single == vector env bit for bit), without numpy's
+        per-call overhead. Used when there is no history, privileged observation or tachometer ripple."""
+        if not self._fast:
+            obs, reward, term, trunc, info = self.step(np.asarray(action, dtype=float).reshape(1, -1))
+            return obs[0], float(reward[0]), bool(term[0]), bool(trunc[0]), {k: v[0] for k, v in info.items()}
+        if self.ended[0]:
+            raise RuntimeError("the episode has ended (truncated or diverged): call reset() first")
+        x = (
+            float(action[0])
+            if isinstance(action, np.ndarray) and action.ndim == 1
+            else float(np.asarray(action, dtype=float).reshape(-1)[0])
+        )
+        if not math.isfinite(x):
+            raise ValueError(f"actions must be finite, got {action}")
+        sc = self.sc
+        a = min(max(x, -1.0), 1.0)
+        command = a * sc.action_scale
+        if self.jitter_steps[0]:
+            j = self.jitter_rng[0].integers(0, self.jitter_steps[0] + 1)
+            self.backend.set_delay(self._all, np.array([(self.delay_steps[0] + j) * sc.spec.timestep]))
+        b = self.backend
+        b.data.ctrl[self.idx.drive_ctrl] = command
+        mujoco.mj_step(b.model, b.data, sc.spec.substeps)
+        diverged = bool(self.diverged[0]) or self._badqacc.number > 0
+        self.diverged[0] = diverged
+        k = int(self.k[0]) + 1
+        self.k[0] = k
+        a_prev = float(self.prev_action[0])
+        self.prev_action[0] = a
+        # the observation, as _observe
+        qpos, qvel = b.data.qpos, b.data.qvel
+        noise = (
+            self.sensors.noise([self.noise_rng[0]], self.noise_scale[:1])[0].tolist()
+            if self.any_noise
+            else None
+        )
+        inv = 1.0 / sc.output_scale
+        vals = []
+        for i, (d, enc, res, gain) in enumerate(self._sens):
+            if enc:
+                th = qpos[d] + noise[i] if noise is not None else qpos[d]
+                m = math.floor(th / res) * res
+            else:
+                m = gain * qvel[d] + (noise[i] if noise is not None else 0.0)
+            vals.append(m * inv)
+        d, enc, _, gain = self._sens[sc.tracked_sensor]
+        truth = float(qpos[d]) if enc else gain * qvel[d]
+        vel = float(qvel[self.track_dof])
+        if not math.isfinite(truth):
+            truth, vel = float(np.nan_to_num(truth)), float(np.nan_to_num(vel))
+        self._log_y0[k] = truth
+        self._log_v0[k] = vel
+        ref = self._ref
+        vals += [ref[k + p] * inv for p in range(sc.preview_steps + 1)]
+        vals.append(a)
+        if all(-OBS_CLIP <= v <= OBS_CLIP for v in vals):  # False for NaN too, as in _observe
+            obs = np.array(vals, dtype=np.float32)
+        else:
+            obs = np.clip(np.nan_to_num(np.array(vals), nan=0.0), -OBS_CLIP, OBS_CLIP).astype(np.float32)
+        # the reward, as step
+        w = sc.reward_weights
+        e = (truth - ref[k]) / sc.output_scale
+        rt = -w["tracking"] * min(e * e, OBS_CLIP)
+        re = -w["effort"] * a * a
+        rs = -w["smoothness"] * ((a - a_prev) * (a - a_prev))
+        reward = -OBS_CLIP if diverged else rt + re + rs
+        self._log_u0[k] = command
+        truncated = k >= sc.episode_steps and not diverged
+        self.ended[0] = diverged or truncated
+        info = {
+            "reward_tracking": rt,
+            "reward_effort": re,
+            "reward_smoothness": rs,
+            "command": command,
+            "reference": ref[k],
+            "output": truth,
+            "time": self._t[k],
+            "diverged": diverged,
+        }
+        return obs, reward, diverged, truncated, info
 
     def _observe(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Observations (float32) and true tracked outputs of simulations ids; logs them."""
@@ -288,6 +392,17 @@ class ServoCore:
     # ------------------------------------------------------------------ ground truth and metrics
     def ground_truth(self, i: int) -> dict:
         """True states of simulation i: joint angles/velocities, bristle states, friction torques."""
+        if self._fast:  # the same values from the MjData, with plain indices
+            d = self.backend.data
+            qv, f, s2 = d.qvel, d.actuator_force, self.sigma2[0]
+            return {
+                "qpos": d.qpos.copy(),
+                "qvel": qv.copy(),
+                "bristle": d.act[self.bristle_adr],
+                "friction_torque": np.array(
+                    [f[a] - s2[j] * qv[dof] for j, (a, dof) in enumerate(self._fric)]
+                ),
+            }
         qpos, qvel, act, force = self.backend.state()
         qv = qvel[i]
         return {

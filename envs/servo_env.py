@@ -114,12 +114,11 @@ class ServoEnv(gym.Env, EzPickle):
         return obs[0], {"params": self.core.params_dict(0), "episode_seed": episode_seed, **self._truth()}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
-        obs, reward, term, trunc, info = self.core.step(np.asarray(action, dtype=float).reshape(1, -1))
-        out = {k: v[0] for k, v in info.items()}
-        out.update(self._truth())
-        if term[0] or trunc[0]:
-            out["episode_metrics"] = self.core.metrics(0)
-        return obs[0], float(reward[0]), bool(term[0]), bool(trunc[0]), out
+        obs, reward, term, trunc, info = self.core.step_single(action)
+        info.update(self._truth())
+        if term or trunc:
+            info["episode_metrics"] = self.core.metrics(0)
+        return obs, reward, term, trunc, info
 
     def render(self) -> np.ndarray | None:
         """An RGB frame of the disks (headless: set MUJOCO_GL=egl or osmesa)."""

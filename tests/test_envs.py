@@ -134,10 +134,32 @@ def test_divergence_ends_the_episode_with_a_flag_and_finite_observation():
     assert term and info["diverged"] and np.all(np.isfinite(obs)) and np.isfinite(r)
 
 
-@pytest.mark.parametrize("scenario", ["kang_regulation", "m220_reversal_tracking", "flexible_zero_speed"])
-def test_vector_env_matches_single_envs_bit_for_bit_across_autoresets(scenario):
-    v = ServoVectorEnv(scenario, 3, nthread=2, randomize=True, episode_s=0.4)
-    singles = [make(scenario, randomize=True, episode_s=0.4) for _ in range(3)]
+NOISY = {  # sensor noise and delay jitter on, to exercise those streams too
+    "kang_regulation": {
+        "plant_overrides": {"sensors": {"encoder": {"noise_std_deg": 0.01}}, "sampling": {"jitter_s": 0.002}}
+    },
+    "m220_reversal_tracking": {
+        "plant_overrides": {
+            "sensors": {"encoder_drive": {"noise_std_counts": 3.0}},
+            "sampling": {"jitter_s": 0.001},
+        }
+    },
+}
+
+
+@pytest.mark.parametrize(
+    ("scenario", "overrides"),
+    [
+        ("kang_regulation", None),
+        ("m220_reversal_tracking", None),
+        ("flexible_zero_speed", None),
+        ("kang_regulation", NOISY["kang_regulation"]),
+        ("m220_reversal_tracking", NOISY["m220_reversal_tracking"]),
+    ],
+)
+def test_vector_env_matches_single_envs_bit_for_bit_across_autoresets(scenario, overrides):
+    v = ServoVectorEnv(scenario, 3, nthread=2, randomize=True, episode_s=0.4, overrides=overrides)
+    singles = [make(scenario, randomize=True, episode_s=0.4, overrides=overrides) for _ in range(3)]
     o, _ = v.reset(seed=50)
     so = [s.reset(seed=50 + i)[0] for i, s in enumerate(singles)]
     assert all(np.array_equal(o[i], so[i]) for i in range(3))
