@@ -80,7 +80,8 @@ def evaluate(
     **kw: Any,
 ) -> list[EpisodeResult]:
     """Every applicable controller on every episode, in order, with a progress bar."""
-    jobs = [(c, e) for e in episodes for c in controllers if c.applies_to(load_scenario(e.scenario))]
+    scenarios = {name: load_scenario(name) for name in {e.scenario for e in episodes}}
+    jobs = [(c, e) for e in episodes for c in controllers if c.applies_to(scenarios[e.scenario])]
     return [
         run_episode(c, e, keep_log=keep_logs, **kw)
         for c, e in tqdm(jobs, desc="episodes", unit="ep", disable=not progress)

@@ -10,7 +10,7 @@ from typing import Any, ClassVar
 from frictiongym.envs.scenario import Scenario
 
 from .base import EpisodeContext
-from .classical import PID, design_pid
+from .classical import PID
 from .design import controller_config
 
 
@@ -23,17 +23,14 @@ class LuGreObserver(PID):
     plants: ClassVar[tuple[str, ...]] = ("kang_robot", "m220", "flexible_servo")
 
     def start(self, ctx: EpisodeContext) -> None:
-        self.integral = ctx.plant.name == "flexible_servo" or self.integral_always
+        self.integral = ctx.plant.name == "flexible_servo"  # PI for the speed loop, PD for position
         super().start(ctx)
-        self.gains = design_pid(ctx, integral=self.integral)
         spec = ctx.plant
         self.p = spec.joints[spec.joint_index(spec.actuator_joint)].friction
         self.k_obs = controller_config()["lugre_observer"]["observer_gain"][spec.name]
         self.z = 0.0
         self.speed_loop = spec.sensors[self.sc.tracked_sensor].kind == "tacho"
         self.k_speed = spec.sensors[self.sc.tracked_sensor].gain if self.speed_loop else 1.0
-
-    integral_always: ClassVar[bool] = False
 
     def velocity(self, y: float, y_prev: float | None) -> float:
         if self.speed_loop:
@@ -43,8 +40,7 @@ class LuGreObserver(PID):
     def friction_estimate(self, v: float, e: float) -> float:
         """F̂ (N·m, opposing motion) and the observer update over one period."""
         p, h = self.p, self.h
-        g = p.fc + (p.fs - p.fc) * math.exp(-((v / p.vs) ** 2))
-        a = p.sigma0 * abs(v) / g
+        a = p.sigma0 * abs(v) / p.g(v)
         # σ1·ẑ' is left out: from sampled velocities it is a velocity feedback of gain σ1, and h·σ1/J is
         # 17 for the flexible servo's motor at 40 ms (it destabilised the loop, measured); σ0 ẑ + σ2 v remain
         F = p.sigma0 * self.z + p.sigma2 * v

@@ -8,7 +8,6 @@ from typing import Any, ClassVar
 import control
 import numpy as np
 
-from frictiongym.envs.scenario import Scenario
 from frictiongym.envs.servo_env import decode_observation
 
 from .base import Controller, EpisodeContext
@@ -90,9 +89,6 @@ class StateFeedback(Controller):
             self.x = d.Phi @ xe + d.Gamma.ravel() * u0
         u = u0 + self.friction_command((d.C @ xe).item())
         return np.array([u / self.sc.action_scale], dtype=np.float32)
-
-    def applies_to(self, scenario: Scenario) -> bool:
-        return super().applies_to(scenario)
 
     def params(self) -> dict[str, Any]:
         d = getattr(self, "design", None)

@@ -178,7 +178,7 @@ class ServoCore:
         sc = self.sc
         s_params, s_init, s_noise, s_jitter = np.random.SeedSequence(seed).spawn(4)
         if sc.randomize:
-            params = EpisodeParams.draw(sc.spec, np.random.default_rng(s_params), sc.randomization)
+            params = EpisodeParams.draw(sc.spec, np.random.default_rng(s_params))
         else:
             params = EpisodeParams.nominal(sc.spec)
         init = np.random.default_rng(s_init)

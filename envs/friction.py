@@ -19,6 +19,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from .config import ConfigError, nonneg, positive
 
 FRICTION_MODELS = ("lugre", "coulomb", "viscous", "none")
@@ -68,9 +70,13 @@ class LuGreParams:
             "static_neg": self.fs + self.bias,
         }
 
+    def g(self, v: float | np.ndarray) -> float | np.ndarray:
+        """Stribeck curve g(v) = Fc + (Fs - Fc)·exp(-(v/vs)²) (N·m), seed 000 eq. (2)."""
+        return self.fc + (self.fs - self.fc) * np.exp(-((v / self.vs) ** 2))
+
     def steady_state(self, v: float) -> float:
         """Steady sliding friction torque on the joint at velocity v (rad/s), v != 0 (N·m)."""
-        g = self.fc + (self.fs - self.fc) * math.exp(-((v / self.vs) ** 2))
+        g = self.g(v)
         return -(math.copysign(g, v) + self.sigma2 * v) + self.bias
 
     def scaled(

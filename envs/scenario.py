@@ -4,7 +4,7 @@ distribution, randomisation, episode length and reward weights, loaded and check
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -66,7 +66,6 @@ class Scenario:
     history: int
     privileged: bool
     reward_weights: dict[str, float]
-    randomization: dict[str, tuple[float, float]] = field(default_factory=dict)
 
     @property
     def control_period(self) -> float:
@@ -171,5 +170,4 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
         history=int(number(obs.get("history", 0), "observation.history", 0, 1000)),
         privileged=bool(obs.get("privileged", False)),
         reward_weights=weights,
-        randomization=dict(spec.randomization),
     )

@@ -9,7 +9,6 @@ the inertia the friction sees (the reflected inertia for the M220), so the numer
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -35,8 +34,7 @@ def lugre_ode(
 
     def f(t: float, y: np.ndarray) -> list[float]:
         th, v, z = y
-        g = p.fc + (p.fs - p.fc) * math.exp(-((v / p.vs) ** 2))
-        zd = v - p.sigma0 * abs(v) * z / g
+        zd = v - p.sigma0 * abs(v) * z / p.g(v)
         friction = p.sigma0 * z + p.sigma1 * zd + p.sigma2 * v
         return [v, (torque(t, th) - friction + p.bias) / J, zd]
 
@@ -55,8 +53,7 @@ def lugre_ode(
 def ode_friction(p: LuGreParams, y: np.ndarray) -> np.ndarray:
     """Friction torque on the joint (N·m) along an ODE solution y = (θ, ω, z)."""
     _, v, z = y
-    g = p.fc + (p.fs - p.fc) * np.exp(-((v / p.vs) ** 2))
-    zd = v - p.sigma0 * np.abs(v) * z / g
+    zd = v - p.sigma0 * np.abs(v) * z / p.g(v)
     return -(p.sigma0 * z + p.sigma1 * zd + p.sigma2 * v) + p.bias
 
 
