@@ -28,14 +28,29 @@ class EpisodeContext:
 
 
 class Controller(ABC):
-    """Acts once per control period on the env's observation; returns the action in [-1, 1]."""
+    """Acts once per control period on the env's observation; returns the action in [-1, 1].
+
+    A controller declares what it needs from a scenario: the kinds of tracked sensor it can close its
+    loop on (`sensor_kinds`), the tasks it is defined for (`tasks`: "regulation" = constant reference,
+    "tracking"), and any further requirement in `why_not`.
+    """
 
     name: ClassVar[str] = "controller"
-    plants: ClassVar[tuple[str, ...]] = ()
+    sensor_kinds: ClassVar[tuple[str, ...]] = ("encoder", "tacho")
+    tasks: ClassVar[tuple[str, ...]] = ("regulation", "tracking")
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        """None if this controller is defined for the scenario, else a one-line reason."""
+        kind = scenario.spec.sensors[scenario.tracked_sensor].kind
+        if kind not in self.sensor_kinds:
+            return f"needs a tracked sensor of kind {list(self.sensor_kinds)}, the scenario tracks a {kind}"
+        if scenario.task not in self.tasks:
+            return f"defined for {list(self.tasks)} tasks, the scenario is {scenario.task}"
+        return None
 
     def applies_to(self, scenario: Scenario) -> bool:
-        """Whether this controller is defined for the scenario (plant and task)."""
-        return scenario.spec.name in self.plants
+        """Whether this controller is defined for the scenario (see why_not)."""
+        return self.why_not(scenario) is None
 
     def plant_overrides(self, scenario: Scenario) -> dict:
         """Hardware the controller brings into the plant (e.g. an analog rate loop); default none."""
@@ -75,3 +90,10 @@ class PhysicalController(Controller):
     @abstractmethod
     def command(self, y: float, r: float) -> float:
         """Command (V or N·m) from the tracked reading y and the reference r."""
+
+
+def drive_friction_reason(scenario: Scenario) -> str | None:
+    """Why a friction compensator cannot act on the scenario's drive joint (no friction there), or None."""
+    if scenario.spec.drive_friction is None:
+        return "needs friction on the driven joint (friction_model is none or viscous)"
+    return None

@@ -13,7 +13,7 @@ from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.suites import Episode
 
 from .base import Controller, EpisodeContext
-from .design import controller_config
+from .settings import knowledge_defaults
 
 
 @dataclass
@@ -52,7 +52,7 @@ def run_episode(
     overrides = {**user, "plant_overrides": {**user.get("plant_overrides", {}), **hw}} if hw else user
     env = ServoEnv(episode.scenario, randomize=episode.randomize, overrides=overrides or None, **env_kwargs)
     sc = env.scenario  # its spec holds the nominal (document) plant; the episode's draw is hidden
-    know = {**controller_config()["knowledge"], **(knowledge or {})}
+    know = {**knowledge_defaults(), **(knowledge or {})}
     obs, _ = env.reset(seed=episode.seed)
     controller.reset(EpisodeContext(sc, sc.spec, know))
     total, done, info = 0.0, False, {}

@@ -15,10 +15,8 @@ import numpy as np
 from frictiongym.envs.suites import load_suite
 
 from .base import Controller
-from .classical import PD, PID, RDFC, Southward
+from .classical import PD, PID, RDFC, CoulombViscousFF, LuGreObserver, Southward, StateFeedback
 from .evaluate import EpisodeResult, evaluate
-from .friction_comp import CoulombViscousFF, LuGreObserver
-from .wallenborg import StateFeedback
 
 CONTROLLERS: dict[str, Callable[[], Controller]] = {
     "PD": PD,

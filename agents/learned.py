@@ -8,23 +8,39 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from frictiongym.envs.scenario import Scenario
+
 from .base import Controller, EpisodeContext
 
 
 class SB3Policy(Controller):
-    """A trained SB3 model (any algorithm with predict) for the plants it was trained on; deterministic."""
+    """A trained SB3 model (any algorithm with predict), deterministic. It applies to a scenario whose
+    observation has the model's shape and, if `plants` is given, whose plant is one of them."""
 
     name: ClassVar[str] = "SB3"
 
-    def __init__(self, model: Any, plants: tuple[str, ...], name: str = "SB3"):
-        self.model, self.plants, self.name = model, plants, name  # instance values shadow the class ones
+    def __init__(self, model: Any, plants: tuple[str, ...] = (), name: str = "SB3"):
+        self.model, self.plants, self.name = model, tuple(plants), name  # instance values shadow the class
 
     @classmethod
-    def load(cls, path: str | Path, algo: str, plants: tuple[str, ...], name: str | None = None) -> SB3Policy:
+    def load(
+        cls, path: str | Path, algo: str, plants: tuple[str, ...] = (), name: str | None = None
+    ) -> SB3Policy:
         """Load a saved model, e.g. SB3Policy.load("sac_kang.zip", "SAC", ("kang_robot",))."""
         import stable_baselines3
 
         return cls(getattr(stable_baselines3, algo).load(str(path)), plants, name or Path(path).stem)
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        from frictiongym.envs.core import observation_layout
+
+        want = tuple(self.model.observation_space.shape)
+        got = (observation_layout(scenario).size,)
+        if got != want:
+            return f"the model observes shape {want}, the scenario gives {got}"
+        if self.plants and scenario.spec.name not in self.plants:
+            return f"trained for plants {list(self.plants)}, the scenario's plant is {scenario.spec.name}"
+        return None
 
     def reset(self, ctx: EpisodeContext) -> None:
         self.ctx = ctx

@@ -1,11 +1,17 @@
-"""Loading plant YAML files from configs/ and checking values, with errors that name the field."""
+"""Loading YAML files from configs/ and checking values, with errors that name the file and the field.
+
+Every YAML file (plant presets, scenarios, suites, controllers, published numbers) is read through a
+`Node`: a checked view of one mapping. Reading a key that is absent is an error naming the file and the
+key; `Node.done()` then reports every key the reader never asked for (a typo such as `episodes_s`). The
+reader is the schema: there is no second list of keys to keep in step with the code.
+"""
 
 from __future__ import annotations
 
 import copy
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -25,11 +31,12 @@ _Loader.add_implicit_resolver(
 
 
 class ConfigError(ValueError):
-    """A configuration or parameter value is invalid; the message names the field and the allowed range."""
+    """A configuration or parameter value is invalid; the message names the field (and the file, when the
+    value came from one) and the allowed range."""
 
-    def __init__(self, field: str, message: str):
-        self.field = field
-        super().__init__(f"{field}: {message}")
+    def __init__(self, field: str, message: str, source: str = ""):
+        self.field, self.source = field, source
+        super().__init__(f"{source}: {field}: {message}" if source else f"{field}: {message}")
 
 
 def configs_dir() -> Path:
@@ -37,34 +44,53 @@ def configs_dir() -> Path:
     return Path(str(resources.files("frictiongym.configs")))
 
 
+def preset_names(kind: str) -> list[str]:
+    """Names of the YAML files under configs/<kind>/ (files starting with '_' are shared defaults)."""
+    return sorted(p.stem for p in (configs_dir() / kind).glob("*.yaml") if not p.stem.startswith("_"))
+
+
 def plant_names() -> list[str]:
     """Names of the plant presets under configs/plants/."""
-    return sorted(p.stem for p in (configs_dir() / "plants").glob("*.yaml"))
+    return preset_names("plants")
 
 
-def load_yaml(name_or_path: str | Path, kind: str = "plants") -> dict[str, Any]:
-    """Load a preset by name (configs/<kind>/<name>.yaml) or by path."""
+def preset_path(name_or_path: str | Path, kind: str) -> Path:
+    """configs/<kind>/<name>.yaml for a name, or the path itself for a .yaml path."""
+    if not isinstance(name_or_path, str | Path) or not str(name_or_path):
+        raise ConfigError(kind, f"expected a preset name or a .yaml path, got {name_or_path!r}")
     path = Path(name_or_path)
     if path.suffix not in (".yaml", ".yml"):
         path = configs_dir() / kind / f"{name_or_path}.yaml"
         if not path.exists():
-            raise ConfigError(kind, f"unknown preset {name_or_path!r}; available: {plant_names()}")
+            raise ConfigError(kind, f"unknown preset {name_or_path!r}; available: {preset_names(kind)}")
+    elif not path.exists():
+        raise ConfigError(kind, f"no such file {str(path)!r}")
+    return path
+
+
+def load_yaml(name_or_path: str | Path, kind: str = "plants") -> dict[str, Any]:
+    """Load a YAML mapping by name (configs/<kind>/<name>.yaml) or by path."""
+    path = preset_path(name_or_path, kind)
     with open(path) as f:
         data = yaml.load(f, Loader=_Loader)
     if not isinstance(data, dict):
-        raise ConfigError(str(path), "a preset must be a YAML mapping")
+        raise ConfigError("(file)", "expected a YAML mapping", str(path))
     return data
 
 
-def merge(base: Mapping[str, Any], overrides: Mapping[str, Any] | None, prefix: str = "") -> dict[str, Any]:
+def merge(base: Mapping[str, Any], overrides: Any, prefix: str = "", source: str = "") -> dict[str, Any]:
     """Deep-merge overrides into a copy of base. Keys must exist in base (typos are errors)."""
+    if overrides is None:
+        return copy.deepcopy(dict(base))
+    if not isinstance(overrides, Mapping):
+        raise ConfigError(prefix.rstrip(".") or "overrides", f"expected a mapping, got {overrides!r}", source)
     out = copy.deepcopy(dict(base))
-    for key, value in (overrides or {}).items():
+    for key, value in overrides.items():
         field = f"{prefix}{key}"
         if key not in out:
-            raise ConfigError(field, f"unknown key; allowed: {sorted(out)}")
-        if isinstance(out[key], dict) and isinstance(value, Mapping):
-            out[key] = merge(out[key], value, prefix=f"{field}.")
+            raise ConfigError(field, f"unknown key; allowed: {sorted(out)}", source)
+        if isinstance(out[key], dict):
+            out[key] = merge(out[key], value, prefix=f"{field}.", source=source)
         else:
             out[key] = copy.deepcopy(value)
     return out
@@ -91,14 +117,30 @@ def number(
     return x
 
 
-def positive(value: Any, field: str) -> float:
-    """A finite number > 0."""
-    return number(value, field, 0.0, low_open=True)
+def positive(value: Any, field: str, high: float = math.inf) -> float:
+    """A finite number > 0 (and <= high)."""
+    return number(value, field, 0.0, high, low_open=True)
 
 
-def nonneg(value: Any, field: str) -> float:
-    """A finite number >= 0."""
-    return number(value, field, 0.0)
+def nonneg(value: Any, field: str, high: float = math.inf) -> float:
+    """A finite number >= 0 (and <= high)."""
+    return number(value, field, 0.0, high)
+
+
+def integer(value: Any, field: str, low: int = -(2**63), high: int = 2**63 - 1) -> int:
+    """An integer (not a bool, not a float such as 2.7) in [low, high]."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigError(field, f"expected an integer, got {value!r}")
+    if not low <= value <= high:
+        raise ConfigError(field, f"{value} is outside the allowed range [{low}, {high}]")
+    return int(value)
+
+
+def boolean(value: Any, field: str) -> bool:
+    """true or false (a string such as "false" is an error, not True)."""
+    if not isinstance(value, bool):
+        raise ConfigError(field, f"expected true or false, got {value!r}")
+    return value
 
 
 def interval(value: Any, field: str, low: float = -math.inf, high: float = math.inf) -> tuple[float, float]:
@@ -110,3 +152,90 @@ def interval(value: Any, field: str, low: float = -math.inf, high: float = math.
     if lo > hi:
         raise ConfigError(field, f"low {lo} > high {hi}")
     return lo, hi
+
+
+class Node:
+    """A checked, read-tracking view of one YAML mapping (see the module docstring).
+
+    Typed readers (`positive`, `integer`, `boolean`, ...) check the value and name `path.key` (and the
+    file) in any error. `section(key)` returns the child Node; `done()` raises on keys never read.
+    """
+
+    def __init__(self, data: Any, source: str = "", path: str = ""):
+        if not isinstance(data, Mapping):
+            raise ConfigError(path.rstrip(".") or "(file)", f"expected a mapping, got {data!r}", source)
+        self.data, self.source, self.path = data, source, path
+        self._read: set[str] = set()
+        self._children: dict[str, Node] = {}
+
+    def field(self, key: str) -> str:
+        return f"{self.path}{key}"
+
+    def error(self, key: str, message: str) -> ConfigError:
+        return ConfigError(self.field(key), message, self.source)
+
+    def __contains__(self, key: str) -> bool:
+        return key in self.data
+
+    def keys(self) -> Iterator[str]:
+        return iter(self.data)
+
+    def __getitem__(self, key: str) -> Any:
+        """The raw value of a required key."""
+        if key not in self.data:
+            raise self.error(key, "missing required key")
+        self._read.add(key)
+        return self.data[key]
+
+    def get(self, key: str, default: Any = None) -> Any:
+        """The raw value of an optional key."""
+        self._read.add(key)
+        return self.data.get(key, default)
+
+    def section(self, key: str, optional: bool = False) -> Node:
+        """The child mapping at key (an empty one if optional and absent); the same Node every time."""
+        if key not in self._children:
+            value = self.get(key, {}) if optional else self[key]
+            self._children[key] = Node(value if value is not None else {}, self.source, f"{self.path}{key}.")
+        return self._children[key]
+
+    def _checked(self, fn, key: str, *args: Any, default: Any = ..., **kw: Any) -> Any:
+        value = self[key] if default is ... else self.get(key, default)
+        try:
+            return fn(value, self.field(key), *args, **kw)
+        except ConfigError as e:
+            raise ConfigError(e.field, str(e).split(": ", 1)[1], self.source) from None
+
+    def number(self, key: str, low: float = -math.inf, high: float = math.inf, **kw: Any) -> float:
+        return self._checked(number, key, low, high, **kw)
+
+    def positive(self, key: str, high: float = math.inf, **kw: Any) -> float:
+        return self._checked(positive, key, high, **kw)
+
+    def nonneg(self, key: str, high: float = math.inf, **kw: Any) -> float:
+        return self._checked(nonneg, key, high, **kw)
+
+    def integer(self, key: str, low: int = -(2**63), high: int = 2**63 - 1, **kw: Any) -> int:
+        return self._checked(integer, key, low, high, **kw)
+
+    def boolean(self, key: str, **kw: Any) -> bool:
+        return self._checked(boolean, key, **kw)
+
+    def interval(self, key: str, low: float = -math.inf, high: float = math.inf, **kw: Any):
+        return self._checked(interval, key, low, high, **kw)
+
+    def choice(self, key: str, options: tuple[str, ...] | list[str], **kw: Any) -> str:
+        def check(value: Any, field: str) -> str:
+            if value not in options:
+                raise ConfigError(field, f"{value!r} not in {list(options)}")
+            return value
+
+        return self._checked(check, key, **kw)
+
+    def done(self) -> None:
+        """Raise on the first key (depth first) that no reader asked for."""
+        for key in self.data:
+            if key not in self._read:
+                raise self.error(key, f"unknown key; this section reads: {sorted(self._read)}")
+        for child in self._children.values():
+            child.done()

@@ -15,8 +15,8 @@ import numpy as np
 from mujoco.batch import Batch, SimulationError
 
 from .metrics import episode_metrics
-from .params import EpisodeParams, ModelIndex, apply, apply_batch
-from .plants import to_mjcf
+from .plants.mjcf import to_mjcf
+from .plants.params import EpisodeParams, ModelIndex, apply, apply_batch
 from .scenario import Scenario
 from .sensors import SensorArrays
 

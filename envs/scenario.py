@@ -71,6 +71,11 @@ class Scenario:
     def control_period(self) -> float:
         return self.spec.control_period
 
+    @property
+    def task(self) -> str:
+        """ "regulation" (constant reference) or "tracking"."""
+        return "regulation" if self.reference.type == "constant" else "tracking"
+
 
 def _reference(r: dict) -> Reference:
     kind = r.get("type")

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .plants import PlantSpec
+from .plants.spec import PlantSpec
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from .friction import LuGreParams
-from .plants import PlantSpec, to_mjcf
+from .plants import PlantSpec
+from .plants.mjcf import to_mjcf
 
 Torque = Callable[[float, float], float]  # T(t, θ) in N·m
 
@@ -75,6 +76,7 @@ class Rig:
             springs=(),
             sensors=(),
             rate_feedback=0.0,
+            rate_loop=False,
             delay=0.0,
         )
         xml = to_mjcf(rig)

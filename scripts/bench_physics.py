@@ -12,7 +12,8 @@ import time
 import mujoco
 
 from frictiongym.envs.config import plant_names
-from frictiongym.envs.plants import plant_spec, to_mjcf
+from frictiongym.envs.plants import plant_spec
+from frictiongym.envs.plants.mjcf import to_mjcf
 
 
 def steps_per_second(model: mujoco.MjModel, seconds: float, nstep: int = 1000) -> float:

@@ -92,7 +92,7 @@ def test_flexible_pi_tracks_the_speed_step_at_40ms():
 
 
 def test_lugre_observer_compensation_removes_kangs_steady_error():
-    from frictiongym.agents.friction_comp import LuGreObserver
+    from frictiongym.agents.classical import LuGreObserver
 
     pd, obs = run_episode(PD(), KANG), run_episode(LuGreObserver(), KANG)
     assert obs.metrics["final_error"] < 0.01 * pd.metrics["final_error"]
@@ -100,7 +100,7 @@ def test_lugre_observer_compensation_removes_kangs_steady_error():
 
 def test_lugre_observer_estimate_converges_to_the_sliding_friction():
     """At constant speed ẑ settles at g(v)/σ0·sgn(v), so F̂ = g(v) + σ2 v (the LuGre steady state)."""
-    from frictiongym.agents.friction_comp import LuGreObserver
+    from frictiongym.agents.classical import LuGreObserver
 
     c = LuGreObserver()
     sc = load_scenario("kang_regulation")
@@ -112,7 +112,7 @@ def test_lugre_observer_estimate_converges_to_the_sliding_friction():
 
 
 def test_coulomb_viscous_feedforward_reduces_reversal_errors():
-    from frictiongym.agents.friction_comp import CoulombViscousFF
+    from frictiongym.agents.classical import CoulombViscousFF
 
     ep = Episode("m220_reversal_tracking", 0, False)
     pd, ff = run_episode(PD(), ep), run_episode(CoulombViscousFF(), ep)

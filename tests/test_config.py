@@ -6,8 +6,8 @@ import pytest
 
 from frictiongym.envs import units
 from frictiongym.envs.config import ConfigError, load_yaml, plant_names
-from frictiongym.envs.params import EpisodeParams
 from frictiongym.envs.plants import plant_spec
+from frictiongym.envs.plants.params import EpisodeParams
 
 
 def test_presets_listed_and_load():

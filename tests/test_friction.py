@@ -10,8 +10,8 @@ import pytest
 from frictiongym.envs import validation
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.friction import LuGreParams, check_numerics
-from frictiongym.envs.params import EpisodeParams
 from frictiongym.envs.plants import plant_spec
+from frictiongym.envs.plants.params import EpisodeParams
 
 warnings.filterwarnings("ignore", category=RuntimeWarning)
 
@@ -27,15 +27,15 @@ def test_kang_construction_keeps_static_levels_and_coulomb_in_document_range():
     spec = plant_spec("kang_robot")
     lv = spec.joints[0].friction.levels()
     assert lv["static_pos"] == pytest.approx(1.785) and lv["static_neg"] == pytest.approx(1.441)
-    lo, hi = spec.info["coulomb_pos_range_nm"]
+    lo, hi = spec.document.coulomb_pos_range_nm
     assert lo <= lv["coulomb_pos"] <= hi
-    lo, hi = spec.info["coulomb_neg_range_nm"]
+    lo, hi = spec.document.coulomb_neg_range_nm
     assert lo <= lv["coulomb_neg"] <= hi
 
 
 def test_m220_coulomb_levels_follow_section_2_3():
     spec = plant_spec("m220")
-    k = spec.info["k_M_nm_per_v"]
+    k = spec.document.k_M_nm_per_v
     lv = spec.joints[0].friction.levels()
     assert lv["coulomb_pos"] / k == pytest.approx(0.114716)
     assert lv["coulomb_neg"] / k == pytest.approx(0.152784)
@@ -95,7 +95,7 @@ def test_sliding_follows_stribeck_curve_both_directions():
 
 def test_stickslip_period_matches_radau():
     spec = plant_spec("kang_robot")
-    r = validation.stickslip_period(spec, "rotor", spec.info["kp_nm_per_rad"], math.radians(1.0), 25.0)
+    r = validation.stickslip_period(spec, "rotor", spec.document.kp_nm_per_rad, math.radians(1.0), 25.0)
     assert r["simulated"] == pytest.approx(r["reference"], rel=0.02)
 
 

@@ -5,45 +5,41 @@ import math
 import numpy as np
 import pytest
 
-from frictiongym.envs import checks
-from frictiongym.envs.identification import coulomb_viscous_fit, m220_step_counts, two_point_step_id
-from frictiongym.envs.plants import m220_eq22, plant_config, plant_spec
-from frictiongym.envs.report import M220_CONFIGS
+from frictiongym.agents.reproduce.iurian2005 import CONFIGS as M220_CONFIGS
+from frictiongym.envs.config import configs_dir
+from frictiongym.envs.identification import coulomb_viscous_fit, two_point_step_id
+from frictiongym.envs.plants import flexible_servo, kang_robot, m220, plant_spec
 
 
 @pytest.mark.parametrize("name", list(M220_CONFIGS))
 def test_m220_reflected_inertia_equals_eq22(name):
     ov = M220_CONFIGS[name]
-    assert checks.m220_reflected_inertia_sim(ov) == pytest.approx(
-        m220_eq22(plant_config("m220", ov)), rel=0.005
-    )
+    assert m220.reflected_inertia_sim(ov) == pytest.approx(m220.eq22_of(ov), rel=0.005)
 
 
 def test_eq22_by_hand_for_default_configuration():
     # n_pd = 24, n_pl = 36: n_g' = 2, n_g = 4; J_p = 8e-6 + 3.9e-5 (SR pulley table)
-    assert m220_eq22(plant_config("m220")) == pytest.approx(0.00040 + (8e-6 + 3.9e-5) / 4 + 0.0065 / 16)
+    assert m220.eq22_of() == pytest.approx(0.00040 + (8e-6 + 3.9e-5) / 4 + 0.0065 / 16)
 
 
 def test_m220_step_passes_measured_points_and_two_point_method_recovers_a_k():
-    idf = plant_config("m220")["identified"]
-    t, y = tuple(idf["step_points_t_s"]), idf["step_points_counts"]
-    sim = m220_step_counts(idf["gain_counts_per_v_s2"], t, idf["step_input_v"])
+    doc = plant_spec("m220").document
+    t, y = doc.step_points_t_s, doc.step_points_counts
+    sim = m220.step_counts(doc.gain_counts_per_v_s2, t, doc.step_input_v)
     assert sim == pytest.approx(y, rel=0.02)
-    ident = two_point_step_id(t, tuple(sim), idf["step_input_v"])
-    assert ident["a"] == pytest.approx(idf["document_a_per_s"], rel=0.05)
-    assert ident["k"] == pytest.approx(idf["document_k_counts_per_v_s2"], rel=0.05)
+    ident = two_point_step_id(t, tuple(sim), doc.step_input_v)
+    assert ident["a"] == pytest.approx(doc.document_a_per_s, rel=0.05)
+    assert ident["k"] == pytest.approx(doc.document_k_counts_per_v_s2, rel=0.05)
     # the document's own numbers from its own points (seed 000 §2.2)
-    doc = two_point_step_id(t, tuple(y), idf["step_input_v"])
-    assert doc["a"] == pytest.approx(0.512081, rel=1e-5) and doc["k"] == pytest.approx(82421.02, rel=1e-5)
+    two = two_point_step_id(t, tuple(y), doc.step_input_v)
+    assert two["a"] == pytest.approx(0.512081, rel=1e-5) and two["k"] == pytest.approx(82421.02, rel=1e-5)
 
 
 def test_m220_friction_table_fit_reproduces_document_slopes():
     """§2.3 fitted 'the points of higher velocities especially': a fit above 7000 counts/s gives the
     published slopes within 10 % (which rows were used is not stated, ERRATA 000)."""
-    from pathlib import Path
-
     table = np.genfromtxt(
-        Path(__file__).parents[2] / "shared/reference/m220_friction_table.csv", delimiter=",", names=True
+        configs_dir() / "published" / "iurian2005_m220_friction_table.csv", delimiter=",", names=True
     )
     fc, fv = coulomb_viscous_fit(table["velocity_up_counts_per_s"], table["control_up_V"], 7000)
     assert fv == pytest.approx(2.3517e-6, rel=0.1) and fc == pytest.approx(0.114716, rel=0.1)
@@ -60,20 +56,20 @@ def _compare(resp, G):
 
 
 def test_flexible_linearisation_matches_G1_G2():
-    G = np.array(checks.flexible_transfer(plant_spec("flexible_servo"), 2j * np.pi * FREQS)).T
-    _compare(checks.flexible_frf_linearized(FREQS), G)
+    G = np.array(flexible_servo.transfer(plant_spec("flexible_servo"), 2j * np.pi * FREQS)).T
+    _compare(flexible_servo.frf_linearized(FREQS), G)
 
 
 def test_flexible_sine_responses_match_G1_G2():
     f = FREQS[[0, 3, 6]]
-    G = np.array(checks.flexible_transfer(plant_spec("flexible_servo"), 2j * np.pi * f)).T
-    _compare(checks.flexible_frf_sine(f), G)
+    G = np.array(flexible_servo.transfer(plant_spec("flexible_servo"), 2j * np.pi * f)).T
+    _compare(flexible_servo.frf_sine(f), G)
 
 
 def test_flexible_transfer_from_parameters_matches_printed_3_5_3_6():
     """The printed G1, G2 are rounded (ERRATA 002); built from §3.1 parameters they agree within 2 %."""
     s = 2j * np.pi * np.array([0.1, 1.0, 5.0])
-    G1, G2 = checks.flexible_transfer(plant_spec("flexible_servo"), s)
+    G1, G2 = flexible_servo.transfer(plant_spec("flexible_servo"), s)
     den = (s + 0.1) * (s**2 + 0.4 * s + 125)
     assert np.abs(G1) == pytest.approx(np.abs(113.6 * (s**2 + 0.07 * s + 16) / den), rel=0.02)
     assert np.abs(G2) == pytest.approx(np.abs(1818 / den), rel=0.02)
@@ -81,10 +77,10 @@ def test_flexible_transfer_from_parameters_matches_printed_3_5_3_6():
 
 def test_kang_resolved_gain_reproduces_printed_bounds():
     spec = plant_spec("kang_robot")
-    kp_deg = spec.info["kp_nm_per_rad"] * math.pi / 180
+    kp_deg = spec.document.kp_nm_per_rad * math.pi / 180
     lv = spec.joints[0].friction.levels()
     assert lv["static_neg"] / kp_deg == pytest.approx(6.97, abs=0.01)  # θ_H = -T_s^-/K_p, eq. 6
     assert -lv["static_pos"] / kp_deg == pytest.approx(-8.64, abs=0.01)  # θ_L = -T_s^+/K_p
-    b = checks.kang_pd_bounds()
+    b = kang_robot.pd_bounds()
     assert b["theta_H_deg"] == pytest.approx(6.97, abs=0.05)
     assert b["theta_L_deg"] == pytest.approx(-8.64, abs=0.05)

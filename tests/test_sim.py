@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 from mujoco.batch import Batch
 
-from frictiongym.envs.params import EpisodeParams, apply_batch
-from frictiongym.envs.sim import PlantSim
+from frictiongym.envs.plants.params import EpisodeParams, apply_batch
+from frictiongym.envs.plants.sim import PlantSim
 
 
 @pytest.mark.parametrize("delay_steps", [0, 1, 7, 40])

@@ -3,15 +3,17 @@
 import numpy as np
 import pytest
 
-from frictiongym.agents.design import (
+from frictiongym.agents.classical.state_feedback import (
+    StateFeedback,
     describing_function_cycle,
     regulator_poles,
     regulator_stability_boundary,
     state_feedback_design,
 )
 from frictiongym.agents.evaluate import run_episode
-from frictiongym.agents.report import WALLENBORG_DESIGNS, wallenborg_published, window_cycle
-from frictiongym.agents.wallenborg import StateFeedback
+from frictiongym.agents.reproduce import published
+from frictiongym.agents.reproduce.wallenborg1987 import DESIGNS as WALLENBORG_DESIGNS
+from frictiongym.agents.reproduce.wallenborg1987 import window_cycle
 from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.suites import Episode
 
@@ -22,7 +24,7 @@ SPEC = plant_spec("flexible_servo")
 def test_gains_match_appendix_b(key):
     w, sensor, h = WALLENBORG_DESIGNS[key]
     d = state_feedback_design(SPEC, w, sensor=sensor, h=h)
-    ref = wallenborg_published()["gains"][key]
+    ref = published("wallenborg1987")["gains"][key]
     assert d.L.ravel() == pytest.approx(ref["L"], rel=0.01)
     assert d.K.ravel() == pytest.approx(ref["K"], rel=0.01)
     assert d.lr == pytest.approx(ref["lr"], rel=0.01)
@@ -74,7 +76,7 @@ def test_without_friction_there_is_no_limit_cycle():
 
 
 def test_regulator_transfer_function_has_the_regulator_poles_and_static_gain():
-    from frictiongym.agents.design import regulator_transfer
+    from frictiongym.agents.classical.state_feedback import regulator_transfer
 
     reg = regulator_transfer(SPEC, 12.0)
     assert np.sort_complex(reg.poles()) == pytest.approx(np.sort_complex(regulator_poles(SPEC, 12.0)))

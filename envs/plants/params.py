@@ -9,9 +9,10 @@ from dataclasses import dataclass, replace
 import mujoco
 import numpy as np
 
-from .config import ConfigError, nonneg, number, positive
-from .friction import LuGreParams, check_numerics
-from .plants import PlantSpec, friction_joints
+from ..config import ConfigError, nonneg, number, positive
+from ..friction import LuGreParams, check_numerics
+from .mjcf import friction_joints
+from .spec import PlantSpec
 
 
 @dataclass(frozen=True)

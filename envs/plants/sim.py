@@ -8,9 +8,11 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from ..sensors import SensorArrays
+from . import plant_spec
+from .mjcf import to_mjcf
 from .params import EpisodeParams, ModelIndex, apply
-from .plants import PlantSpec, plant_spec, to_mjcf
-from .sensors import SensorArrays
+from .spec import PlantSpec
 
 
 @dataclass
@@ -112,3 +114,27 @@ class PlantSim:
         return np.array(
             [self.data.act[m.actuator_actadr[a]] for a in self.idx.friction if m.actuator_actnum[a] > 0]
         )
+
+
+def linearize(sim: PlantSim, eps: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+    """Continuous-time (A, B) of the MuJoCo model at rest: central differences of qacc from mj_forward
+    over (qpos, qvel) and the drive command. State x = (qpos, qvel)."""
+    m, d = sim.model, sim.data
+    nv = m.nv
+
+    def acc(q: np.ndarray, v: np.ndarray, u: float) -> np.ndarray:
+        d.qpos[:], d.qvel[:], d.ctrl[:] = q, v, 0.0
+        d.ctrl[sim.idx.drive_ctrl] = u
+        mujoco.mj_forward(m, d)
+        return d.qacc.copy()
+
+    q0, v0 = np.zeros(nv), np.zeros(nv)
+    A = np.zeros((2 * nv, 2 * nv))
+    A[:nv, nv:] = np.eye(nv)
+    for i in range(2 * nv):
+        dx = np.zeros(2 * nv)
+        dx[i] = eps
+        A[nv:, i] = (acc(q0 + dx[:nv], v0 + dx[nv:], 0.0) - acc(q0 - dx[:nv], v0 - dx[nv:], 0.0)) / (2 * eps)
+    B = np.zeros(2 * nv)
+    B[nv:] = (acc(q0, v0, eps) - acc(q0, v0, -eps)) / (2 * eps)
+    return A, B

@@ -1,87 +1,65 @@
-"""Classical baselines: PD/PID, Southward's nonlinear compensator (Kang eq. 7-8) and Kang's RDFC
-(eq. 11-12), all digital at the scenario's sampling period and designed from the nominal plant."""
+"""Southward's nonlinear compensator (Kang eq. 7-8) and Kang's robust digital friction compensator RDFC
+(eq. 11-12), both for set-point regulation of a position loop, designed from the nominal plant."""
 
 from __future__ import annotations
 
-import math
+from dataclasses import dataclass
+from functools import cache
 from typing import Any, ClassVar
 
 from frictiongym.envs import units
 from frictiongym.envs.scenario import Scenario
 
-from .base import EpisodeContext, PhysicalController
-from .design import (
-    PIDGains,
-    controller_config,
-    kang_pd,
-    pd_by_pole_placement,
-    pi_speed_loop,
-    pid_by_pole_placement,
-    rigid_position_plant,
-)
+from .. import settings as cfg
+from ..base import EpisodeContext, PhysicalController, drive_friction_reason
+from .pid import PIDSettings, design_pid
+
+EQ12B_READINGS = ("printed", "symmetric")
 
 
-def design_pid(ctx: EpisodeContext, integral: bool) -> PIDGains:
-    """Gains for the scenario's plant from configs/controllers.yaml choices and the nominal plant."""
-    cfg = controller_config()
-    spec = ctx.plant
-    J, c, b = rigid_position_plant(spec)
-    if spec.name == "flexible_servo":
-        f = cfg["pid"]["flexible_servo"]
-        Jt = sum(j.inertia for j in spec.joints)
-        ct = sum(j.viscous for j in spec.joints)
-        return pi_speed_loop(Jt, ct, b, spec.info["k_w1"], f["natural_frequency_rad_s"], f["zeta"])
-    if spec.name == "kang_robot":
-        zeta = cfg["pd"]["kang_robot"]["zeta"]
-        pd = kang_pd(spec, zeta)
-        wn = math.sqrt(pd.kp * b / J)
-    else:
-        f = cfg["pd"][spec.name]
-        zeta, wn = f["zeta"], 2 * math.pi * f["natural_frequency_hz"]
-        pd = pd_by_pole_placement(J, c, b, wn, zeta)
-    return pid_by_pole_placement(J, c, b, wn, zeta, cfg["pid"]["integrator_pole_ratio"]) if integral else pd
+@dataclass(frozen=True)
+class SouthwardSettings:
+    """static_friction_margin: T̃_s = margin·T_s (Kang §6: 1.2)."""
+
+    SECTION: ClassVar[str] = "southward"
+    static_friction_margin: float
+
+    @classmethod
+    @cache
+    def defaults(cls) -> SouthwardSettings:
+        s = cfg.section(cls.SECTION)
+        out = cls(s.positive("static_friction_margin", 10.0))
+        s.done()
+        return out
 
 
-class PID(PhysicalController):
-    """u = kp·e + ki·∫e + kd·d(-y)/dt, e = r - y: derivative on the measurement (no set-point kick),
-    backward differences at T_s; conditional-integration anti-windup (the integrator holds while the
-    command is saturated and the error would push it further)."""
+@dataclass(frozen=True)
+class RDFCSettings:
+    """static_friction_margin (Kang §6: 1.2); delta_deg: dead band δ_H = -δ_L (deg, §6: 0.02 and 0.04);
+    eq12b_reading: "printed" or "symmetric" third line of eq. (12b) (ERRATA 001, controllers.yaml)."""
 
-    name: ClassVar[str] = "PID"
-    plants: ClassVar[tuple[str, ...]] = ("kang_robot", "m220", "flexible_servo")
-    integral: ClassVar[bool] = True
+    SECTION: ClassVar[str] = "rdfc"
+    static_friction_margin: float
+    delta_deg: float
+    eq12b_reading: str
 
-    def start(self, ctx: EpisodeContext) -> None:
-        self.gains = design_pid(ctx, self.integral)
-        self.i_term, self.y_prev = 0.0, None
-
-    def command(self, y: float, r: float) -> float:
-        g, h, limit = self.gains, self.h, self.sc.action_scale
-        e = r - y
-        d = 0.0 if self.y_prev is None else -(y - self.y_prev) / h
-        self.y_prev = y
-        u = g.kp * e + self.i_term + g.kd * d
-        if abs(u) < limit or u * e < 0:
-            self.i_term += g.ki * e * h
-        return max(-limit, min(limit, u))
-
-    def params(self) -> dict[str, Any]:
-        return vars(self.gains) if hasattr(self, "gains") else {}
-
-
-class PD(PID):
-    """PD (PID without the integrator); not defined for the flexible servo's speed loop."""
-
-    name: ClassVar[str] = "PD"
-    plants: ClassVar[tuple[str, ...]] = ("kang_robot", "m220")
-    integral: ClassVar[bool] = False
+    @classmethod
+    @cache
+    def defaults(cls) -> RDFCSettings:
+        s = cfg.section(cls.SECTION)
+        out = cls(
+            s.positive("static_friction_margin", 10.0),
+            s.positive("delta_deg", 90.0),
+            s.choice("eq12b_reading", EQ12B_READINGS),
+        )
+        s.done()
+        return out
 
 
 def static_bounds(ctx: EpisodeContext) -> tuple[float, float]:
     """(T_s^+, |T_s^-|) the compensator believes (N·m at the drive): the nominal plant's static levels
     scaled by knowledge.static_friction_scale (1.0 = the document's values)."""
-    spec = ctx.plant
-    lv = spec.joints[spec.joint_index(spec.actuator_joint)].friction.levels()
+    lv = ctx.plant.drive_friction.levels()
     k = ctx.knowledge.get("static_friction_scale", 1.0)
     return k * lv["static_pos"], k * lv["static_neg"]
 
@@ -92,22 +70,27 @@ class Southward(PhysicalController):
     ω from the backward difference of the encoder (digital D)."""
 
     name: ClassVar[str] = "Southward"
-    plants: ClassVar[tuple[str, ...]] = ("kang_robot", "m220")
+    sensor_kinds: ClassVar[tuple[str, ...]] = ("encoder",)
+    tasks: ClassVar[tuple[str, ...]] = ("regulation",)
 
-    def applies_to(self, scenario: Scenario) -> bool:
-        return super().applies_to(scenario) and scenario.reference.type == "constant"
+    def __init__(
+        self, settings: SouthwardSettings | None = None, pid: PIDSettings | None = None, **overrides: Any
+    ):
+        self.settings = cfg.with_overrides(settings or SouthwardSettings.defaults(), overrides)
+        self.pid = pid or PIDSettings.defaults()
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        return super().why_not(scenario) or drive_friction_reason(scenario)
 
     def start(self, ctx: EpisodeContext) -> None:
-        pd = design_pid(ctx, integral=False)
+        pd = design_pid(ctx, False, self.pid)
         b = ctx.plant.actuator_gain
         self.kp, self.kd = pd.kp * b, pd.kd * b  # N·m/rad, N·m·s/rad
-        margin = controller_config()[self.config_key]["static_friction_margin"]
+        margin = self.settings.static_friction_margin
         ts_pos, ts_neg = static_bounds(ctx)
         self.ts_pos, self.ts_neg = margin * ts_pos, -margin * ts_neg  # T̃_s^+ > 0, T̃_s^- < 0
         self.theta_h, self.theta_l = -self.ts_neg / self.kp, -self.ts_pos / self.kp  # eq. (8b)-(8c)
         self.y_prev = None
-
-    config_key: ClassVar[str] = "southward"
 
     def omega(self, y: float) -> float:
         w = 0.0 if self.y_prev is None else (y - self.y_prev) / self.h
@@ -140,23 +123,38 @@ class Southward(PhysicalController):
 
 class RDFC(Southward):
     """Kang's robust digital friction compensator (eq. 11-12): digital P + hysteresis compensation with
-    dead band [δ_L, δ_H] = [-δ, δ], and an analog D loop (the plant's rate feedback, K_d, at physics rate).
-    "K_n θ" in (12b) is read as K_p θ (ERRATA 001); for (12b)'s third line see compensation()."""
+    dead band [δ_L, δ_H] = [-δ, δ], and an analog D loop (the plant's rate feedback, K_d, at physics rate),
+    so it needs a rig with an analog rate loop. "K_n θ" in (12b) is read as K_p θ (ERRATA 001); for
+    (12b)'s third line see compensation()."""
 
     name: ClassVar[str] = "RDFC"
-    plants: ClassVar[tuple[str, ...]] = ("kang_robot",)
-    config_key: ClassVar[str] = "rdfc"
 
-    def __init__(self, delta_deg: float | None = None, reading: str | None = None):
-        cfg = controller_config()["rdfc"]
-        self.delta_deg = delta_deg if delta_deg is not None else cfg["delta_deg"]
-        self.reading = reading or cfg["eq12b_reading"]
-        if self.reading not in ("printed", "symmetric"):
-            raise ValueError(f"reading {self.reading!r} not in ['printed', 'symmetric']")
+    def __init__(
+        self,
+        delta_deg: float | None = None,
+        eq12b_reading: str | None = None,
+        *,
+        settings: RDFCSettings | None = None,
+        pid: PIDSettings | None = None,
+    ):
+        given = {"delta_deg": delta_deg, "eq12b_reading": eq12b_reading}
+        self.settings = cfg.with_overrides(
+            settings or RDFCSettings.defaults(), {k: v for k, v in given.items() if v is not None}
+        )
+        if self.settings.eq12b_reading not in EQ12B_READINGS:
+            raise ValueError(f"eq12b_reading {self.settings.eq12b_reading!r} not in {list(EQ12B_READINGS)}")
+        self.pid = pid or PIDSettings.defaults()
+        self.delta_deg, self.reading = self.settings.delta_deg, self.settings.eq12b_reading
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        reason = super().why_not(scenario)
+        if reason is None and not scenario.spec.rate_loop:
+            return "needs the rig's analog rate-feedback loop (Kang §4, Fig. 4); this plant has none"
+        return reason
 
     def plant_overrides(self, scenario: Scenario) -> dict:
         ctx = EpisodeContext(scenario, scenario.spec)
-        kd = design_pid(ctx, integral=False).kd * scenario.spec.actuator_gain
+        kd = design_pid(ctx, False, self.pid).kd * scenario.spec.actuator_gain
         return {"actuator": {"rate_feedback_nm_s_per_deg": units.per_rad_to_per_deg(kd)}}
 
     def start(self, ctx: EpisodeContext) -> None:

@@ -1,0 +1,29 @@
+"""Classical baselines, one module per family: PD/PID (pid.py), Southward and RDFC (southward_rdfc.py),
+state feedback + observer with relay / high-gain compensation (state_feedback.py), LuGre-observer
+compensation (lugre_observer.py) and Coulomb + viscous feed-forward (feedforward.py). Each family's
+settings object reads its defaults from configs/controllers.yaml once; constructor arguments override."""
+
+from .feedforward import CoulombViscousFF
+from .lugre_observer import LuGreObserver, LuGreObserverSettings
+from .pid import PD, PID, PIDSettings, design_pid
+from .southward_rdfc import RDFC, RDFCSettings, Southward, SouthwardSettings
+from .state_feedback import StateFeedback, StateFeedbackSettings
+
+SETTINGS = (PIDSettings, SouthwardSettings, RDFCSettings, StateFeedbackSettings, LuGreObserverSettings)
+
+__all__ = [
+    "PD",
+    "PID",
+    "RDFC",
+    "SETTINGS",
+    "CoulombViscousFF",
+    "LuGreObserver",
+    "LuGreObserverSettings",
+    "PIDSettings",
+    "RDFCSettings",
+    "Southward",
+    "SouthwardSettings",
+    "StateFeedback",
+    "StateFeedbackSettings",
+    "design_pid",
+]

@@ -1,0 +1,42 @@
+"""Coulomb + viscous friction feed-forward from identified parameters (seed 000 §2.3 for the M220) on top
+of the PD position loop of pid.py, for tracking a previewed reference."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from frictiongym.envs.scenario import Scenario
+
+from ..base import EpisodeContext, drive_friction_reason
+from .pid import PID
+
+
+class CoulombViscousFF(PID):
+    """u = u_fb + (F_C^± sgn(v_r) + σ2 v_r)/k_act with v_r the reference velocity (backward difference of
+    the reference), the identified levels of the plant preset. Needs a reference preview (a tracking
+    scenario with preview_steps > 0)."""
+
+    name: ClassVar[str] = "CoulombViscousFF"
+    sensor_kinds: ClassVar[tuple[str, ...]] = ("encoder",)
+    tasks: ClassVar[tuple[str, ...]] = ("tracking",)
+    integral: ClassVar[bool] = False
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        reason = super().why_not(scenario) or drive_friction_reason(scenario)
+        if reason is None and scenario.preview_steps == 0:
+            return "needs a reference preview (reference.preview_steps > 0)"
+        return reason
+
+    def start(self, ctx: EpisodeContext) -> None:
+        super().start(ctx)
+        self.p = ctx.plant.drive_friction
+        self.r_prev: float | None = None
+
+    def command(self, y: float, r: float) -> float:
+        vr = 0.0 if self.r_prev is None else (r - self.r_prev) / self.h
+        self.r_prev = r
+        u_fb = super().command(y, r)
+        lv = self.p.levels()
+        ff = (lv["coulomb_pos"] if vr > 0 else -lv["coulomb_neg"] if vr < 0 else 0.0) + self.p.sigma2 * vr
+        limit = self.sc.action_scale
+        return max(-limit, min(limit, u_fb + ff / self.ctx.plant.actuator_gain))

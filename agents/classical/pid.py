@@ -1,0 +1,131 @@
+"""PD and PID (derivative on the measurement, conditional-integration anti-windup), digital at the
+scenario's sampling period and designed from the nominal plant by pole placement; on a speed reading
+(tachometer) the same loop is a PI speed controller."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from functools import cache
+from typing import Any, ClassVar
+
+from frictiongym.envs.plants import PlantSpec
+
+from .. import settings as cfg
+from ..base import EpisodeContext, PhysicalController
+from .design import (
+    PIDGains,
+    pd_by_pole_placement,
+    pd_from_stiffness,
+    pi_speed_loop,
+    pid_by_pole_placement,
+    rigid_position_plant,
+)
+
+
+@dataclass(frozen=True)
+class LoopDesign:
+    """Closed-loop choice for one plant: damping ζ and natural frequency ω_n (rad/s); ω_n None means
+    "from the plant document's position stiffness K_p" (Kang §6)."""
+
+    zeta: float
+    natural_frequency_rad_s: float | None = None
+
+
+@dataclass(frozen=True)
+class PIDSettings:
+    """PD/PID design choices (controllers.yaml `pid`): integrator pole a = integrator_pole_ratio·ω_n, and
+    the loop design per plant preset (sources in the YAML)."""
+
+    SECTION: ClassVar[str] = "pid"
+    integrator_pole_ratio: float
+    loops: Mapping[str, LoopDesign]
+
+    @classmethod
+    @cache
+    def defaults(cls) -> PIDSettings:
+        s = cfg.section(cls.SECTION)
+        loops = {}
+        ls = s.section("loops")
+        for plant in list(ls.keys()):
+            p = ls.section(plant)
+            hz, rad = p.get("natural_frequency_hz"), p.get("natural_frequency_rad_s")
+            if hz is not None and rad is not None:
+                raise p.error("natural_frequency_hz", "give natural_frequency_hz or _rad_s, not both")
+            wn = (
+                2 * math.pi * p.positive("natural_frequency_hz", 1e4)
+                if hz is not None
+                else p.positive("natural_frequency_rad_s", 1e5)
+                if rad is not None
+                else None
+            )
+            loops[plant] = LoopDesign(p.positive("zeta", 10.0), wn)
+        out = cls(s.positive("integrator_pole_ratio", 100.0), loops)
+        s.done()
+        return out
+
+    def loop(self, spec: PlantSpec) -> LoopDesign:
+        if spec.name not in self.loops:
+            raise ValueError(
+                f"no PID loop design for plant {spec.name!r}; settings have {sorted(self.loops)}"
+            )
+        return self.loops[spec.name]
+
+
+def design_pid(ctx: EpisodeContext, integral: bool, settings: PIDSettings | None = None) -> PIDGains:
+    """Gains for the scenario's tracked reading from the settings and the nominal plant."""
+    settings = settings or PIDSettings.defaults()
+    spec = ctx.plant
+    loop = settings.loop(spec)
+    sensor = spec.sensors[ctx.scenario.tracked_sensor]
+    J, c, b = rigid_position_plant(spec)
+    if sensor.kind == "tacho":  # PI speed loop on the rigid-body model of all shafts
+        Jt = sum(j.inertia for j in spec.joints)
+        ct = sum(j.viscous for j in spec.joints)
+        return pi_speed_loop(Jt, ct, b, sensor.gain, loop.natural_frequency_rad_s, loop.zeta)
+    zeta = loop.zeta
+    if loop.natural_frequency_rad_s is None:
+        pd = pd_from_stiffness(J, c, b, spec.document.kp_nm_per_rad, zeta)
+        wn = math.sqrt(pd.kp * b / J)
+    else:
+        wn = loop.natural_frequency_rad_s
+        pd = pd_by_pole_placement(J, c, b, wn, zeta)
+    return pid_by_pole_placement(J, c, b, wn, zeta, settings.integrator_pole_ratio) if integral else pd
+
+
+class PID(PhysicalController):
+    """u = kp·e + ki·∫e + kd·d(-y)/dt, e = r - y: derivative on the measurement (no set-point kick),
+    backward differences at T_s; conditional-integration anti-windup (the integrator holds while the
+    command is saturated and the error would push it further)."""
+
+    name: ClassVar[str] = "PID"
+    integral: ClassVar[bool] = True
+
+    def __init__(self, settings: PIDSettings | None = None, **overrides: Any):
+        self.settings = cfg.with_overrides(settings or PIDSettings.defaults(), overrides)
+
+    def start(self, ctx: EpisodeContext) -> None:
+        self.gains = design_pid(ctx, self.integral, self.settings)
+        self.i_term, self.y_prev = 0.0, None
+
+    def command(self, y: float, r: float) -> float:
+        g, h, limit = self.gains, self.h, self.sc.action_scale
+        e = r - y
+        d = 0.0 if self.y_prev is None else -(y - self.y_prev) / h
+        self.y_prev = y
+        u = g.kp * e + self.i_term + g.kd * d
+        if abs(u) < limit or u * e < 0:
+            self.i_term += g.ki * e * h
+        return max(-limit, min(limit, u))
+
+    def params(self) -> dict[str, Any]:
+        return vars(self.gains) if hasattr(self, "gains") else {}
+
+
+class PD(PID):
+    """PD (PID without the integrator), for position loops."""
+
+    name: ClassVar[str] = "PD"
+    sensor_kinds: ClassVar[tuple[str, ...]] = ("encoder",)
+    integral: ClassVar[bool] = False

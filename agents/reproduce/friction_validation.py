@@ -1,0 +1,54 @@
+"""Each plant's MuJoCo LuGre element against an independent stiff-ODE (Radau) solution of the same
+equations (seed 000 §1.4.6; envs/validation.py): break-away both ways, presliding, sliding at five
+speeds both ways, and a stick-slip period on Kang's rotor."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+from frictiongym.envs import validation
+from frictiongym.envs.plants import plant_spec
+
+from . import Section, row
+
+JOINTS = {"kang_robot": "rotor", "flexible_servo": "shaft1", "m220": "drive"}
+
+
+def rows(_: None) -> Iterator[dict]:
+    for plant, joint in JOINTS.items():
+        spec = plant_spec(plant)
+        p = spec.joints[spec.joint_index(joint)].friction
+        for d, name in ((1, "pos"), (-1, "neg")):
+            r = validation.breakaway(spec, joint, d)
+            yield row(
+                f"friction.breakaway.{plant}.{name}",
+                r["reference"],
+                r["simulated"],
+                0.02,
+                note="N·m vs Radau",
+            )
+        r = validation.presliding(spec, joint)
+        yield row(f"friction.presliding.{plant}", r["reference"], r["simulated"], 0.02, note="rad vs Radau")
+        for mult in (0.5, 1.0, 2.0, 5.0, 20.0):
+            for sg in (1, -1):
+                r = validation.sliding(spec, joint, sg * mult * p.vs)
+                yield row(
+                    f"friction.sliding.{plant}.{sg * mult:g}vs",
+                    r["reference"],
+                    r["simulated"],
+                    0.02,
+                    note=f"N·m at v = {r['velocity']:.4g} rad/s vs analytic steady state",
+                )
+    spec = plant_spec("kang_robot")
+    r = validation.stickslip_period(spec, "rotor", spec.document.kp_nm_per_rad, math.radians(1.0), 25.0)
+    yield row(
+        "friction.stickslip_period",
+        r["reference"],
+        r["simulated"],
+        0.02,
+        note="s, Kang rotor pulled by a K_p spring at 1 deg/s, vs Radau",
+    )
+
+
+SECTION = Section("friction", "friction_validation", lambda: None, rows)

@@ -1,0 +1,230 @@
+"""Seed 001 (Kang 1998): the robot's P-ramp equilibrium bounds (eq. 6, §6), its implied Coulomb levels,
+and the baselines of §6 on the nominal plant: PD (Fig. 7), Southward at 5/20/40 ms (Fig. 8) and RDFC
+with δ = 0.02 / 0.04 deg (Fig. 9-10), including ERRATA 001's alternative reading of eq. (12b)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from frictiongym.envs.plants import kang_robot, plant_spec
+from frictiongym.envs.suites import Episode
+
+from ..classical import PD, RDFC, Southward
+from ..evaluate import EpisodeResult, run_episode
+from . import Section, published_node, row, save_figure
+
+EPISODE = Episode("kang_regulation", 0, False)  # θ(0) = 20 deg, set-point 0, 20 ms, nominal plant
+SOUTHWARD_PERIODS_MS = (5, 20, 40)
+DELTAS_DEG = (0.02, 0.04)
+
+
+def _deg(x: float) -> float:
+    return math.degrees(x)
+
+
+def plant_rows(bounds: dict[str, float]) -> Iterator[dict]:
+    doc = plant_spec("kang_robot").document
+    spec = plant_spec("kang_robot")
+    # printed to 0.01 deg; K_p is the mean of the two printed bounds' implied values -> 0.05 deg
+    yield row(
+        "kang.theta_H_deg",
+        doc.theta_H_deg,
+        bounds["theta_H_deg"],
+        0.05,
+        relative=False,
+        note="simulated P-control ramp at 0.05 deg/s, §6",
+    )
+    yield row("kang.theta_L_deg", doc.theta_L_deg, bounds["theta_L_deg"], 0.05, relative=False, note="")
+    wn = math.sqrt(doc.kp_nm_per_rad / spec.joints[0].inertia) / (2 * math.pi)
+    yield row("kang.natural_frequency_hz", doc.natural_frequency_hz, wn, 0.01, note="sqrt(K_p/J)")
+    lv = spec.joints[0].friction.levels()
+    for key, (lo, hi) in (
+        ("coulomb_pos", doc.coulomb_pos_range_nm),
+        ("coulomb_neg", doc.coulomb_neg_range_nm),
+    ):
+        yield row(
+            f"kang.{key}_nm",
+            0.5 * (lo + hi),
+            lv[key],
+            0.5 * (hi - lo),
+            relative=False,
+            note="implied by the symmetric-LuGre + bias construction; document range",
+        )
+
+
+PLANT = Section("kang", "kang1998", kang_robot.pd_bounds, plant_rows)
+
+
+def cycles(result: EpisodeResult) -> float:
+    """Oscillation cycles before the rotor settles: half the number of sign changes of the error."""
+    e = result.log["output"] - result.log["reference"]
+    s = np.sign(e[e != 0])
+    return 0.5 * float(np.count_nonzero(s[1:] != s[:-1]))
+
+
+def baseline_runs() -> dict[str, EpisodeResult]:
+    runs = {"pd": run_episode(PD(), EPISODE, keep_log=True)}
+    for ms in SOUTHWARD_PERIODS_MS:
+        runs[f"southward_{ms}ms"] = run_episode(
+            Southward(), EPISODE, keep_log=True, control_period_s=ms / 1000
+        )
+    for d in DELTAS_DEG:
+        runs[f"rdfc_{d}"] = run_episode(RDFC(d), EPISODE, keep_log=True)
+        runs[f"rdfc_{d}_symmetric"] = run_episode(RDFC(d, "symmetric"), EPISODE, keep_log=True)
+    return runs
+
+
+def _published_rdfc(d: float) -> tuple[float, float]:
+    p = published_node("kang1998").section("rdfc").section(f"delta_{d}_deg")
+    return p.number("final_error_deg"), p.number("cycles")
+
+
+def baseline_rows(runs: dict[str, EpisodeResult]) -> Iterator[dict]:
+    spec = plant_spec("kang_robot")
+    lo, hi = spec.document.theta_L_deg, spec.document.theta_H_deg
+    e_pd = _deg(runs["pd"].log["output"][-1])
+    pd_doc = published_node("kang1998").number("pd_final_error_deg")
+    yield row(
+        "kang.pd.final_error_deg",
+        pd_doc,
+        e_pd,
+        hi - lo,
+        relative=False,
+        note=f"pass: inside [θ_L, θ_H] = [{lo}, {hi}] deg (eq. 6); the document measured {pd_doc} deg",
+        passed=lo <= e_pd <= hi,
+    )
+    amps = {ms: _deg(runs[f"southward_{ms}ms"].metrics["limit_cycle_amp"]) for ms in SOUTHWARD_PERIODS_MS}
+    res = math.degrees(spec.sensors[0].resolution)
+    for ms in SOUTHWARD_PERIODS_MS:
+        ok = amps[ms] > 10 * res and (ms == 5 or amps[ms] > amps[{20: 5, 40: 20}[ms]])
+        yield row(
+            f"kang.southward.amp_deg.{ms}ms",
+            float("nan"),
+            amps[ms],
+            float("nan"),
+            relative=False,
+            note="sustained limit cycle (> 10 encoder counts) whose amplitude grows with the sampling "
+            "period (§6, Fig. 8; no number printed)",
+            passed=ok,
+        )
+    for d in DELTAS_DEG:
+        doc_e, doc_c = _published_rdfc(d)
+        r = runs[f"rdfc_{d}"]
+        e = _deg(r.log["output"][-1])
+        yield row(
+            f"kang.rdfc.{d}.final_error_deg",
+            doc_e,
+            e,
+            d,
+            relative=False,
+            note=f"pass: |e| <= δ = {d} deg (Theorem 2)",
+            passed=abs(e) <= d,
+        )
+        yield row(
+            f"kang.rdfc.{d}.cycles",
+            doc_c,
+            cycles(r),
+            float("nan"),
+            relative=False,
+            note="half the error sign changes before settling; see report text for why it differs",
+            passed=cycles(r) <= cycles(runs["rdfc_0.02"]),
+        )
+        s = runs[f"rdfc_{d}_symmetric"]
+        yield row(
+            f"kang.rdfc.{d}.symmetric_12b.limit_cycle_amp_deg",
+            float("nan"),
+            _deg(s.metrics["limit_cycle_amp"]),
+            float("nan"),
+            relative=False,
+            note="ERRATA 001 'symmetric' reading of (12b): sustained chatter (> 10 counts) shows why the "
+            "printed reading is followed",
+            passed=_deg(s.metrics["limit_cycle_amp"]) > 10 * res,
+        )
+
+
+def figures(runs: dict[str, EpisodeResult], out: Path) -> list[str]:
+    """Kang Fig. 7-10 analogues: rotor angle (deg) vs time."""
+    import matplotlib.pyplot as plt
+
+    figs = [
+        ("kang_fig7_pd.png", ["pd"], "PD control (Fig. 7)"),
+        (
+            "kang_fig8_southward.png",
+            ["southward_5ms", "southward_20ms", "southward_40ms"],
+            "Southward's compensator, 5/20/40 ms sampling (Fig. 8)",
+        ),
+        ("kang_fig9_rdfc_002.png", ["rdfc_0.02", "rdfc_0.02_symmetric"], "RDFC δ = 0.02 deg (Fig. 9)"),
+        ("kang_fig10_rdfc_004.png", ["rdfc_0.04", "rdfc_0.04_symmetric"], "RDFC δ = 0.04 deg (Fig. 10)"),
+    ]
+    names = []
+    for fname, keys, title in figs:
+        fig, (a1, a2) = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
+        for k in keys:
+            g = runs[k].log
+            a1.plot(g["t"], np.degrees(g["output"]), label=k)
+            a2.plot(g["t"], np.degrees(g["output"]), label=k)
+        a1.set(ylabel="θ (deg)", title=title)
+        a1.legend()
+        a2.set(ylabel="θ (deg), zoom", xlabel="t (s)", ylim=(-0.06, 0.06))
+        names.append(save_figure(fig, out, fname))
+    return names
+
+
+def findings(runs: dict[str, EpisodeResult], rows: list[dict]) -> str:
+    """Where the simulation and Kang's experiments agree or differ (markdown), from the runs and rows."""
+    ok = {r["id"]: r["pass"] for r in rows}
+    spec = plant_spec("kang_robot")
+    lo, hi = spec.document.theta_L_deg, spec.document.theta_H_deg
+    pub = published_node("kang1998")
+    pd_doc = pub.number("pd_final_error_deg")
+    z_lo, z_hi = pub.interval("pd_zeta_printed")
+    pd = _deg(runs["pd"].log["output"][-1])
+    lc = {ms: _deg(runs[f"southward_{ms}ms"].metrics["limit_cycle_amp"]) for ms in SOUTHWARD_PERIODS_MS}
+    grows = all(ok[f"kang.southward.amp_deg.{ms}ms"] for ms in SOUTHWARD_PERIODS_MS)
+    sym = _deg(runs["rdfc_0.02_symmetric"].metrics["limit_cycle_amp"])
+    lines = [
+        "## Kang baselines: findings",
+        "",
+        f"- **PD** stops at {pd:.3f} deg, {'inside' if lo <= pd <= hi else 'OUTSIDE'} "
+        f"[θ_L, θ_H] = [{lo}, {hi}] deg as eq. (6) requires; Kang measured {pd_doc} deg. "
+        "The stopping point is where the decaying PD torque drops below the static level while the "
+        "rotor sticks, which depends on the slip friction's "
+        f"shape (Stribeck curve, LuGre dynamics) and on K_d (ζ printed in [{z_lo}, {z_hi}]).",
+        f"- **Southward** keeps a limit cycle of {lc[5]:.4f} / {lc[20]:.4f} / {lc[40]:.4f} deg "
+        "at 5 / 20 / 40 ms: "
+        + (
+            "sustained and growing with the sampling period, as §3.1 and §6 state."
+            if grows
+            else "NOT the sustained cycle growing with the sampling period that §3.1 and §6 describe."
+        ),
+    ]
+    for d in DELTAS_DEG:
+        doc_e, doc_c = _published_rdfc(d)
+        e, c = _deg(runs[f"rdfc_{d}"].log["output"][-1]), cycles(runs[f"rdfc_{d}"])
+        lines.append(
+            f"- **RDFC δ = {d} deg** ends at e_ss = {e:.4f} deg (Kang: {doc_e}), "
+            f"{'within' if abs(e) <= d else 'OUTSIDE'} ±δ, after {c:g} cycles (Kang: {doc_c:g})."
+        )
+    if any(cycles(runs[f"rdfc_{d}"]) != _published_rdfc(d)[1] for d in DELTAS_DEG):
+        lines.append(
+            "  The cycle counts differ from Kang's. Candidates, not yet separated: K_d (see PD), the "
+            "friction (Kang's is position dependent, §6; here LuGre with constant levels) and the analog "
+            "loop (ideal here)."
+        )
+    lines.append(
+        f"- **Eq. (12b)**: with ERRATA 001's 'symmetric' third line the rotor keeps chattering across zero "
+        f"({sym:.4f} deg), "
+        + (
+            "which contradicts Kang's convergence, so the printed line is followed."
+            if ok["kang.rdfc.0.02.symmetric_12b.limit_cycle_amp_deg"]
+            else "no more than with the printed line."
+        )
+    )
+    return "\n".join(lines) + "\n"
+
+
+BASELINES = Section("kang_baselines", "kang1998", baseline_runs, baseline_rows, figures, findings)

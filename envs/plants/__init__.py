@@ -1,0 +1,79 @@
+"""Plants: one module per plant (its preset builder, typed document data and derived linear models),
+shared dataclasses (spec.py), MJCF (mjcf.py), per-episode parameters (params.py) and the sampled-data
+simulator (sim.py).
+
+Adding a plant means configs/plants/<name>.yaml with `plant: <name>`, a module <name>.py here with
+`build(cfg: Node, friction_model: str) -> PlantSpec`, and its scenarios.
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import replace
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from ..config import ConfigError, Node, load_yaml, merge, plant_names, preset_path
+from ..friction import FRICTION_MODELS, check_numerics
+from .spec import JointSpec, PlantSpec
+
+__all__ = ["PlantSpec", "plant_config", "plant_module", "plant_names", "plant_spec"]
+
+
+def plant_module(name: str) -> ModuleType:
+    """The module frictiongym.envs.plants.<name> that builds plant `name`."""
+    if name not in plant_names():
+        raise ConfigError("plant", f"unknown plant {name!r}; available: {plant_names()}")
+    return importlib.import_module(f"{__name__}.{name}")
+
+
+def plant_config(name: str | Path, overrides: dict | None = None) -> dict[str, Any]:
+    """The preset's YAML merged with overrides (keys must exist)."""
+    return merge(load_yaml(name), overrides, source=preset_path(name, "plants").name)
+
+
+def plant_spec(name: str | Path, overrides: dict | None = None, friction_model: str = "lugre") -> PlantSpec:
+    """Build the SI PlantSpec of preset `name` with YAML-level overrides; validates every value, every
+    key (unknown and missing keys are errors naming the file)."""
+    if friction_model not in FRICTION_MODELS:
+        raise ConfigError("friction_model", f"{friction_model!r} not in {list(FRICTION_MODELS)}")
+    cfg = Node(plant_config(name, overrides), preset_path(name, "plants").name)
+    module = plant_module(cfg.choice("plant", plant_names()))
+    cfg.get("description")
+    spec = module.build(cfg, friction_model)
+    cfg.done()
+    delay_hi = spec.randomization.get("delay_s", (0.0, spec.delay))[1]
+    jitter_hi = spec.randomization.get("jitter_s", (0.0, spec.jitter))[1]
+    if delay_hi + jitter_hi > spec.control_period + 1e-12:
+        raise ConfigError(
+            "randomization.delay_s",
+            f"delay up to {delay_hi} s plus jitter up to {jitter_hi} s exceeds "
+            f"the control period {spec.control_period} s",
+            cfg.source,
+        )
+    for j in spec.joints:
+        if j.friction is not None:
+            j.friction.validate(f"friction[{j.name}]")
+            if friction_model == "lugre":
+                check_numerics(
+                    j.friction,
+                    spec.reflected_inertia(j.name),
+                    spec.timestep,
+                    spec.integrator,
+                    f"friction[{j.name}]",
+                )
+    if friction_model != "lugre":
+        spec = replace(spec, joints=tuple(_strip(j, friction_model) for j in spec.joints))
+    return spec
+
+
+def _strip(j: JointSpec, model: str) -> JointSpec:
+    """Reduce a joint's LuGre friction to the requested simpler model (kept as LuGreParams fields)."""
+    if j.friction is None:
+        return j
+    if model == "none":
+        return replace(j, friction=None)
+    if model == "viscous":
+        return replace(j, viscous=j.viscous + j.friction.sigma2, friction=None)
+    return j  # coulomb: the MJCF uses frictionloss = fc and the bias; σ's are unused

@@ -1,0 +1,67 @@
+"""MJCF text of a PlantSpec (see plants/spec.py for the modelling choices)."""
+
+from __future__ import annotations
+
+import math
+
+from .spec import PlantSpec
+
+
+def friction_joints(spec: PlantSpec) -> list[str]:
+    """Joints that carry a friction actuator, in actuator order."""
+    return [j.name for j in spec.joints if j.friction is not None]
+
+
+def to_mjcf(spec: PlantSpec) -> str:
+    """MJCF text of the plant. Actuator order: drive motor, friction elements, rate feedback."""
+    nsample = spec.substeps + 2  # history for delays up to one control period
+    bodies, actuators, extra = [], [], []
+    for i, j in enumerate(spec.joints):
+        x = 0.25 * i
+        fl = j.friction.fc if (j.friction is not None and spec.friction_model == "coulomb") else 0.0
+        bodies.append(
+            f'<body name="{j.name}" pos="{x} 0 0"><joint name="{j.name}" type="hinge" axis="0 0 1" '
+            f'armature="{j.inertia!r}" damping="{j.viscous!r}" frictionloss="{fl!r}"/>'
+            f'<geom type="cylinder" size="0.08 0.01" mass="1e-6" rgba="0.6 0.6 0.7 1"/>'
+            f'<geom type="box" pos="0.05 0 0.012" size="0.03 0.005 0.002" mass="1e-6" '
+            f'rgba="0.9 0.3 0.2 1"/></body>'
+        )
+    actuators.append(
+        f'<motor name="drive" joint="{spec.actuator_joint}" gear="{spec.actuator_gain!r}" ctrllimited="true" '
+        f'ctrlrange="{-spec.command_limit!r} {spec.command_limit!r}" nsample="{nsample}" interp="zoh" '
+        f'delay="{spec.delay!r}"/>'
+    )
+    for j in spec.joints:
+        p = j.friction
+        if p is None:
+            continue
+        lugre = (
+            f'lugre="{p.sigma0!r} {p.sigma1!r} {p.fc!r} {p.fs!r} {p.vs!r}" damping="{p.sigma2!r}" '
+            if spec.friction_model == "lugre"
+            else ""
+        )
+        actuators.append(
+            f'<dcmotor name="friction_{j.name}" joint="{j.name}" input="none" resistance="1" '
+            f'motorconst="0 0" {lugre}cogging="{p.bias!r} 0 {math.pi / 2!r}"/>'
+        )
+    if spec.rate_feedback > 0 or spec.rate_loop:
+        actuators.append(
+            f'<velocity name="rate_feedback" joint="{spec.actuator_joint}" '
+            f'kv="{max(spec.rate_feedback, 1e-12)!r}"/>'
+        )
+    for b in spec.belts:
+        extra.append(
+            f'<equality><joint joint1="{b.driven}" joint2="{b.driver}" polycoef="0 {b.ratio!r} 0 0 0" '
+            f'solref="{spec.belt_timeconst!r} 1"/></equality>'
+        )
+    for s in spec.springs:
+        extra.append(
+            f'<tendon><fixed name="spring_{s.a}_{s.b}" stiffness="{s.stiffness!r}" damping="{s.damping!r}">'
+            f'<joint joint="{s.b}" coef="1"/><joint joint="{s.a}" coef="-1"/></fixed></tendon>'
+        )
+    return (
+        f'<mujoco model="{spec.name}"><option timestep="{spec.timestep!r}" integrator="{spec.integrator}" '
+        f'gravity="0 0 0"/><visual><global offwidth="640" offheight="480"/></visual>'
+        f'<worldbody><light pos="0 0 2"/><camera name="top" pos="0.25 -0.6 0.6" xyaxes="1 0 0 0 0.7 0.7"/>'
+        f"{''.join(bodies)}</worldbody><actuator>{''.join(actuators)}</actuator>{''.join(extra)}</mujoco>"
+    )
