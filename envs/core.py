@@ -19,8 +19,19 @@ from .plants.mjcf import to_mjcf
 from .plants.params import EpisodeParams, ModelIndex, apply, apply_batch
 from .scenario import Scenario
 from .sensors import SensorArrays
+from .step import (
+    ARRAY,
+    FLOAT,
+    OBS_CLIP,
+    encoder_reading,
+    observation_layout,
+    reward_terms,
+    reward_total,
+    sanitize_observation,
+    step_info,
+    tacho_reading,
+)
 
-OBS_CLIP = 1e6  # observations are clipped here and never NaN (a diverged simulation ends the episode)
 BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
 
 
@@ -153,6 +164,8 @@ class ServoCore:
         if self._fast:  # a live view of the MjData's warning counter (reset with it)
             self._badqacc = self.backend.data.warning[BADQACC]
         self._t = self.t.tolist()
+        self._substeps = spec.substeps
+        self._window = range(sc.preview_steps + 1)
         self._sens = [
             (int(d), bool(e), float(r), float(g))
             for d, e, r, g in zip(
@@ -163,13 +176,10 @@ class ServoCore:
                 strict=True,
             )
         ]
-        self.obs_dim = (
-            self.nsensor
-            + 2
-            + sc.preview_steps
-            + sc.history * (self.nsensor + 1)
-            + (1 + 2 * len(self.fric_act) if sc.privileged else 0)
-        )
+        self.layout = layout_of(sc)
+        self.obs_dim = self.layout.size
+        w = sc.reward_weights  # a diverged step scores below the worst step that did not diverge
+        self.diverged_reward = -(w["tracking"] * OBS_CLIP + w["effort"] + 4.0 * w["smoothness"]) - 1.0
 
     # ------------------------------------------------------------------ reset
     def draw(self, seed: int) -> tuple[EpisodeParams, np.ndarray, np.ndarray, list[np.random.Generator]]:
@@ -232,28 +242,16 @@ class ServoCore:
         self.prev_action[ids] = a  # the observation shows the command now being held
         obs, truth = self._observe(ids)
         e = (truth - self.ref[k]) / self.sc.output_scale
-        w = self.sc.reward_weights
-        terms = {
-            "reward_tracking": -w["tracking"] * np.minimum(e * e, OBS_CLIP),
-            "reward_effort": -w["effort"] * a * a,
-            "reward_smoothness": -w["smoothness"] * ((a - a_prev) * (a - a_prev)),
-        }
-        reward = terms["reward_tracking"] + terms["reward_effort"] + terms["reward_smoothness"]
+        terms = reward_terms(e, a, a_prev, self.sc.reward_weights, ARRAY)
+        reward = reward_total(terms)
         diverged = self.diverged[ids]
         if diverged.any():  # otherwise the reward is finite: truth was sanitised and a is clipped
-            reward = np.where(diverged, -OBS_CLIP, np.nan_to_num(reward, nan=-OBS_CLIP))
+            reward = np.where(diverged, self.diverged_reward, reward)
         self.log_u[ids, k] = command
         terminated = diverged.copy()
         truncated = (k >= self.sc.episode_steps) & ~terminated
         self.ended[ids] = terminated | truncated
-        info = {
-            **terms,
-            "command": command,
-            "reference": self.ref[k],
-            "output": truth,
-            "time": self.t[k],
-            "diverged": diverged.copy(),
-        }
+        info = step_info(terms, command, self.ref[k], truth, self.t[k], diverged.copy())
         return obs, reward, terminated, truncated, info
 
     def step_single(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
@@ -280,7 +278,7 @@ class ServoCore:
             self.backend.set_delay(self._all, np.array([(self.delay_steps[0] + j) * sc.spec.timestep]))
         b = self.backend
         b.data.ctrl[self.idx.drive_ctrl] = command
-        mujoco.mj_step(b.model, b.data, sc.spec.substeps)
+        mujoco.mj_step(b.model, b.data, self._substeps)
         diverged = bool(self.diverged[0]) or self._badqacc.number > 0
         self.diverged[0] = diverged
         k = int(self.k[0]) + 1
@@ -295,14 +293,13 @@ class ServoCore:
             else None
         )
         inv = 1.0 / sc.output_scale
-        vals = []
+        sensors = []
         for i, (d, enc, res, gain) in enumerate(self._sens):
             if enc:
-                th = qpos[d] + noise[i] if noise is not None else qpos[d]
-                m = math.floor(th / res) * res
+                m = encoder_reading(qpos[d] + noise[i] if noise is not None else qpos[d], res, FLOAT)
             else:
-                m = gain * qvel[d] + (noise[i] if noise is not None else 0.0)
-            vals.append(m * inv)
+                m = tacho_reading(qvel[d], gain, noise[i] if noise is not None else 0.0)
+            sensors.append(m * inv)
         d, enc, _, gain = self._sens[sc.tracked_sensor]
         truth = float(qpos[d]) if enc else gain * qvel[d]
         vel = float(qvel[self.track_dof])
@@ -311,32 +308,16 @@ class ServoCore:
         self._log_y0[k] = truth
         self._log_v0[k] = vel
         ref = self._ref
-        vals += [ref[k + p] * inv for p in range(sc.preview_steps + 1)]
-        vals.append(a)
-        if all(-OBS_CLIP <= v <= OBS_CLIP for v in vals):  # False for NaN too, as in _observe
-            obs = np.array(vals, dtype=np.float32)
-        else:
-            obs = np.clip(np.nan_to_num(np.array(vals), nan=0.0), -OBS_CLIP, OBS_CLIP).astype(np.float32)
-        # the reward, as step
-        w = sc.reward_weights
+        window = [ref[k + p] * inv for p in self._window]
+        parts = {"sensors": sensors, "reference": window[:1], "preview": window[1:], "previous_action": [a]}
+        obs = sanitize_observation(self.layout.pack(parts))
         e = (truth - ref[k]) / sc.output_scale
-        rt = -w["tracking"] * min(e * e, OBS_CLIP)
-        re = -w["effort"] * a * a
-        rs = -w["smoothness"] * ((a - a_prev) * (a - a_prev))
-        reward = -OBS_CLIP if diverged else rt + re + rs
+        terms = reward_terms(e, a, a_prev, sc.reward_weights, FLOAT)
+        reward = self.diverged_reward if diverged else reward_total(terms)
         self._log_u0[k] = command
         truncated = k >= sc.episode_steps and not diverged
         self.ended[0] = diverged or truncated
-        info = {
-            "reward_tracking": rt,
-            "reward_effort": re,
-            "reward_smoothness": rs,
-            "command": command,
-            "reference": ref[k],
-            "output": truth,
-            "time": self._t[k],
-            "diverged": diverged,
-        }
+        info = step_info(terms, command, ref[k], truth, self._t[k], diverged)
         return obs, reward, diverged, truncated, info
 
     def _observe(self, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -359,35 +340,35 @@ class ServoCore:
         self.log_v[ids, k] = vel
         sc = self.sc
         inv = 1.0 / sc.output_scale
-        ns, p = self.nsensor, sc.preview_steps
-        obs = np.empty((len(ids), self.obs_dim))
-        obs[:, :ns] = meas * inv
-        obs[:, ns : ns + p + 1] = self.ref[k[:, None] + self.preview_offsets] * inv
-        obs[:, ns + p + 1] = self.prev_action[ids]
-        col = ns + p + 2
+        ns, n = self.nsensor, len(ids)
+        window = self.ref[k[:, None] + self.preview_offsets] * inv
+        parts = {
+            "sensors": meas * inv,
+            "reference": window[:, :1],
+            "preview": window[:, 1:],
+            "previous_action": self.prev_action[ids][:, None],
+        }
         if sc.history:
             h = self.hist[ids]
             h[:, 1:] = h[:, :-1].copy()
             h[:, 0, :ns], h[:, 0, ns] = meas * inv, self.prev_action[ids]
             self.hist[ids] = h
-            obs[:, col : col + h[0].size] = h.reshape(len(ids), -1)
-            col += h[0].size
+            parts["history"] = h.reshape(n, -1)
         if sc.privileged:
             unit = sc.action_scale * sc.spec.actuator_gain  # torque of a unit action
             act, force = act[sel], force[sel]
             nf = len(self.fric_act)
-            z = act[:, self.bristle_adr] if len(self.bristle_adr) else np.zeros((len(ids), nf))
-            sigma0 = np.array([[f.sigma0 for f in self.params[i].friction] for i in ids]).reshape(
-                len(ids), -1
+            z = act[:, self.bristle_adr] if len(self.bristle_adr) else np.zeros((n, nf))
+            sigma0 = np.array([[f.sigma0 for f in self.params[i].friction] for i in ids]).reshape(n, -1)
+            parts["privileged"] = np.concatenate(
+                [
+                    (truth * inv)[:, None],
+                    (force[:, self.fric_act] - self.sigma2[ids] * qvel[:, self.fric_dofs]) / unit,
+                    sigma0 * z / unit,
+                ],
+                axis=1,
             )
-            obs[:, col] = truth * inv
-            obs[:, col + 1 : col + 1 + nf] = (
-                force[:, self.fric_act] - self.sigma2[ids] * qvel[:, self.fric_dofs]
-            ) / unit
-            obs[:, col + 1 + nf :] = sigma0 * z / unit
-        if not np.abs(obs).max() <= OBS_CLIP:  # also catches NaN
-            obs = np.clip(np.nan_to_num(obs, nan=0.0), -OBS_CLIP, OBS_CLIP)
-        return obs.astype(np.float32), truth
+        return sanitize_observation(self.layout.pack(parts)), truth
 
     # ------------------------------------------------------------------ ground truth and metrics
     def ground_truth(self, i: int) -> dict:
@@ -440,3 +421,12 @@ class ServoCore:
             lc_min_amp=self.lc_min_amp,
             reversal_half_window=max(0.25, 5 * self.sc.control_period),
         )
+
+
+def layout_of(scenario: Scenario):
+    """The scenario's ObservationLayout."""
+    spec = scenario.spec
+    n_friction = sum(j.friction is not None for j in spec.joints)
+    return observation_layout(
+        len(spec.sensors), scenario.preview_steps, scenario.history, scenario.privileged, n_friction
+    )

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .plants.spec import PlantSpec
+from .step import ARRAY, encoder_reading, tacho_reading
 
 
 @dataclass(frozen=True)
@@ -55,10 +56,10 @@ class SensorArrays:
         """(n, nsensor) readings. Encoder: floor((θ + noise)/resolution)·resolution (an incremental counter
         counts whole lines passed). Tacho: gain·ω + ripple·sin(n·θ) + noise (V)."""
         th = qpos[:, self.dofs]
-        enc = np.floor((th + noise if self.any_noise else th) / self.resolution) * self.resolution
+        enc = encoder_reading(th + noise if self.any_noise else th, self.resolution, ARRAY)
         if self.all_encoders:
             return enc
-        tacho = self.gain * qvel[:, self.dofs] + noise
+        tacho = tacho_reading(qvel[:, self.dofs], self.gain, noise)
         if self.any_ripple:
             tacho += self.ripple_amp * np.sin(self.ripple_n * th)
         return np.where(self.encoder, enc, tacho)

@@ -16,45 +16,40 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
-from .core import OBS_CLIP, ServoCore
+from .core import ServoCore, layout_of
 from .scenario import Scenario, load_scenario
+from .step import OBS_CLIP, observation_layout
 
-OBSERVATION_DOC = """
-    Observation (float32, flat Box), in this order; s = the scenario's ``task.output_scale``:
+OBSERVATION_DOC = f"""
+    Observation (float32, flat Box), blocks in this order (``env.unwrapped.layout`` names their slices);
+    s = the scenario's ``task.output_scale``:
 
-    ===========================  ====================================================================
-    entries                      meaning
-    ===========================  ====================================================================
-    n_sensors                    sensor readings / s (encoder angle in rad, quantised; tacho in V)
-    1                            reference r(t_k) / s
-    preview_steps                r(t_{k+1}) ... r(t_{k+P}) / s
-    1                            previous action (the command being held), in [-1, 1]
-    history·(n_sensors + 1)      past (readings / s, action) samples, newest first (observation.history)
-    1 + 2·n_friction             privileged only: true output / s, friction torque and bristle force
-                                 σ0·z, both in units of a full-scale action's torque
-    ===========================  ====================================================================
+{observation_layout("n_sensors", "preview_steps", "history", "privileged", "n_friction").table()}
 
     Action: Box(-1, 1, (1,)). The amplifier command is action · ``task.action_scale`` (V or N·m), then
     clipped by the plant's limit. Classical controllers convert with ``command_to_action`` /
     ``action_to_command`` and read physical readings with ``decode_observation``.
 
-    Reward: -(w_t·(e/s)² + w_u·a² + w_du·(a - a_prev)²) with e = true output - reference at the new sample;
-    the terms are in ``info`` as reward_tracking, reward_effort, reward_smoothness. A diverged simulation
-    ends the episode (terminated, ``info["diverged"]``) with reward -1e6.
+    Reward: -(w_t·min((e/s)², 1e6) + w_u·a² + w_du·(a - a_prev)²) with e = true output - reference at the
+    new sample; the terms are in ``info`` as reward_tracking, reward_effort, reward_smoothness and sum to
+    the reward. A diverged simulation (MuJoCo reset it, or its state is not finite) ends the episode
+    (terminated, ``info["diverged"]``) with a reward below that of any step that did not diverge.
     ``info`` also holds the ground truth (qpos, qvel, bristle, friction_torque), the command, the true output,
-    the reference, and at reset the episode's drawn parameters; at the end ``info["episode_metrics"]``.
+    the reference, and at reset the episode's parameters; at the end ``info["episode_metrics"]``.
 """
 
 
 def decode_observation(scenario: Scenario, obs: np.ndarray) -> dict[str, Any]:
-    """Physical readings from an observation: sensors (rad or V), reference, preview, held command."""
-    n, s = len(scenario.spec.sensors), scenario.output_scale
-    p = scenario.preview_steps
+    """Physical readings from an observation, by the scenario's layout: sensors (rad or V), reference,
+    preview, held command."""
+    lay, s = layout_of(scenario), scenario.output_scale
     return {
-        "sensors": dict(zip([x.name for x in scenario.spec.sensors], obs[:n] * s, strict=True)),
-        "reference": float(obs[n] * s),
-        "preview": obs[n + 1 : n + 1 + p] * s,
-        "previous_command": float(obs[n + 1 + p] * scenario.action_scale),
+        "sensors": dict(
+            zip([x.name for x in scenario.spec.sensors], obs[lay.slice("sensors")] * s, strict=True)
+        ),
+        "reference": float(obs[lay.slice("reference")][0] * s),
+        "preview": obs[lay.slice("preview")] * s,
+        "previous_command": float(obs[lay.slice("previous_action")][0] * scenario.action_scale),
     }
 
 
@@ -99,6 +94,8 @@ class ServoEnv(gym.Env, EzPickle):
             raise ValueError(f"render_mode {render_mode!r} not in {self.metadata['render_modes']}")
         self.render_mode = render_mode
         self.core = ServoCore(self.scenario)
+        self.layout = self.core.layout  # named slices of the observation
+        self.observation_structure = self.layout.structure()
         self.observation_space = spaces.Box(-OBS_CLIP, OBS_CLIP, (self.core.obs_dim,), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self._renderer: mujoco.Renderer | None = None

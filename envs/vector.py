@@ -13,8 +13,9 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .core import OBS_CLIP, ServoCore
+from .core import ServoCore
 from .scenario import load_scenario
+from .step import OBS_CLIP
 
 
 def _seeds(seed: int | Sequence[int] | None, n: int, rng: np.random.Generator) -> list[int]:
