@@ -1,17 +1,30 @@
 """The simulated world (frictiongym.envs): plants, friction, sensors, sampling, scenarios, metrics, envs.
 
 Importing this package registers the Gymnasium ids frictiongym/M220-v0, frictiongym/FlexibleServo-v0 and
-frictiongym/KangRobot-v0 (each takes scenario= and keyword overrides).
+frictiongym/KangRobot-v0 (each takes scenario= and keyword overrides); gym.make_vec(id, num_envs,
+vectorization_mode="vector_entry_point") gives the batched ServoVectorEnv.
 """
 
-import gymnasium as gym
+import logging
 
-ENV_IDS = {
-    "frictiongym/M220-v0": "frictiongym.envs.servo_env:M220Env",
-    "frictiongym/FlexibleServo-v0": "frictiongym.envs.servo_env:FlexibleServoEnv",
-    "frictiongym/KangRobot-v0": "frictiongym.envs.servo_env:KangRobotEnv",
+import gymnasium as gym
+import mujoco
+
+# MuJoCo writes its warnings to MUJOCO_LOG.TXT in the working directory; route them to Python logging
+# instead (a divergence is reported per episode through info["diverged"]).
+mujoco.set_mju_user_warning(lambda msg: logging.getLogger("frictiongym.mujoco").warning(msg))
+
+ENV_IDS = {  # id -> (single env, vector env over mujoco.batch for gym.make_vec)
+    "frictiongym/M220-v0": ("servo_env:M220Env", "vector:m220_vector"),
+    "frictiongym/FlexibleServo-v0": ("servo_env:FlexibleServoEnv", "vector:flexible_servo_vector"),
+    "frictiongym/KangRobot-v0": ("servo_env:KangRobotEnv", "vector:kang_robot_vector"),
 }
 
-for _id, _entry in ENV_IDS.items():
+for _id, (_entry, _vector) in ENV_IDS.items():
     if _id not in gym.registry:
-        gym.register(id=_id, entry_point=_entry, disable_env_checker=True)
+        gym.register(
+            id=_id,
+            entry_point=f"frictiongym.envs.{_entry}",
+            vector_entry_point=f"frictiongym.envs.{_vector}",
+            disable_env_checker=True,
+        )

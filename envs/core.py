@@ -17,6 +17,7 @@ from mujoco.batch import Batch, SimulationError
 from .metrics import episode_metrics
 from .plants.mjcf import to_mjcf
 from .plants.params import EpisodeParams, ModelIndex, apply, apply_batch
+from .sampler import INITIAL_STATE, JITTER, SENSOR_NOISE, stream
 from .scenario import Scenario
 from .sensors import SensorArrays
 from .step import (
@@ -32,7 +33,14 @@ from .step import (
     tacho_reading,
 )
 
-BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
+# MuJoCo warnings after which it resets the simulation or ignores the command: each ends the episode
+# as diverged (MuJoCo would otherwise carry on silently from rest).
+DIVERGENCE_WARNINGS = np.array(
+    [
+        int(getattr(mujoco.mjtWarning, w))
+        for w in ("mjWARN_BADQACC", "mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADCTRL")
+    ]
+)
 
 
 class SingleBackend:
@@ -57,7 +65,8 @@ class SingleBackend:
         """Advance simulations ids one control period; returns their 'diverged' flags."""
         self.data.ctrl[self.idx.drive_ctrl] = command[0]
         mujoco.mj_step(self.model, self.data, self.sc.spec.substeps)
-        return self._bad if self.data.warning[BADQACC].number > 0 else self._good
+        w = self.data.warning
+        return self._bad if any(w[i].number > 0 for i in DIVERGENCE_WARNINGS) else self._good
 
     def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         d = self.data
@@ -97,7 +106,7 @@ class BatchBackend:
             self.batch.step(ids, nstep=self.sc.spec.substeps)
         except SimulationError as e:  # those simulations kept their state; the others ran
             self.failed[e.ids] = True
-        return (self.batch.warning[ids, BADQACC, 1] > 0) | self.failed[ids]
+        return (self.batch.warning[ids][:, DIVERGENCE_WARNINGS, 1] > 0).any(axis=1) | self.failed[ids]
 
     def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         return self.qpos, self.qvel, self.act, self.force
@@ -161,8 +170,8 @@ class ServoCore:
         self._ref = self.ref.tolist()
         self._fric = [(int(a), int(d)) for a, d in zip(self.fric_act, self.fric_dofs, strict=True)]
         self._log_y0, self._log_v0, self._log_u0 = self.log_y[0], self.log_v[0], self.log_u[0]  # row views
-        if self._fast:  # a live view of the MjData's warning counter (reset with it)
-            self._badqacc = self.backend.data.warning[BADQACC]
+        if self._fast:  # live views of the MjData's warning counters (reset with it)
+            self._warnings = [self.backend.data.warning[i] for i in DIVERGENCE_WARNINGS]
         self._t = self.t.tolist()
         self._substeps = spec.substeps
         self._window = range(sc.preview_steps + 1)
@@ -182,24 +191,29 @@ class ServoCore:
         self.diverged_reward = -(w["tracking"] * OBS_CLIP + w["effort"] + 4.0 * w["smoothness"]) - 1.0
 
     # ------------------------------------------------------------------ reset
-    def draw(self, seed: int) -> tuple[EpisodeParams, np.ndarray, np.ndarray, list[np.random.Generator]]:
-        """Everything random about an episode, from its seed alone: parameters, initial state, and the
+    def draw(
+        self, seed: int, pinned: dict | None = None
+    ) -> tuple[EpisodeParams, np.ndarray, np.ndarray, list[np.random.Generator]]:
+        """Everything random about an episode, from its seed alone, each quantity from its own named
+        stream (envs/sampler.py): parameters (then `pinned` parameter values), initial state, and the
         noise and jitter streams."""
         sc = self.sc
-        s_params, s_init, s_noise, s_jitter = np.random.SeedSequence(seed).spawn(4)
         if sc.randomize:
-            params = EpisodeParams.draw(sc.spec, np.random.default_rng(s_params))
+            params = EpisodeParams.draw(sc.spec, seed, pinned)
         else:
-            params = EpisodeParams.nominal(sc.spec)
-        init = np.random.default_rng(s_init)
+            params = EpisodeParams.from_values(sc.spec, pinned or {})
+        init = stream(seed, INITIAL_STATE)
         qpos = sc.spec.full_state(init.uniform(sc.qpos_range[:, 0], sc.qpos_range[:, 1]))
         qvel = sc.spec.full_state(init.uniform(sc.qvel_range[:, 0], sc.qvel_range[:, 1]))
-        return params, qpos, qvel, [np.random.default_rng(s_noise), np.random.default_rng(s_jitter)]
+        return params, qpos, qvel, [stream(seed, SENSOR_NOISE), stream(seed, JITTER)]
 
-    def reset(self, ids: np.ndarray, seeds: list[int]) -> np.ndarray:
-        """Start new episodes in simulations ids with the given seeds; returns their observations."""
-        draws = [self.draw(s) for s in seeds]
+    def reset(self, ids: np.ndarray, seeds: list[int], pinned: dict | None = None) -> np.ndarray:
+        """Start new episodes in simulations ids with the given seeds (and pinned parameter values);
+        returns their observations. Everything is drawn and checked before any state changes."""
+        draws = [self.draw(s, pinned) for s in seeds]
         params = [d[0] for d in draws]
+        for p in params:
+            p.validate(self.sc.spec)
         self.backend.apply(ids, params)
         self.backend.reset_state(ids, np.array([d[1] for d in draws]), np.array([d[2] for d in draws]))
         spec = self.sc.spec
@@ -226,9 +240,7 @@ class ServoCore:
         ids = self._all if ids is None else np.asarray(ids)
         if self.ended[ids].any():
             raise RuntimeError("the episode has ended (truncated or diverged): call reset() first")
-        action = np.asarray(action, dtype=float).reshape(len(ids), -1)[:, 0]
-        if not np.isfinite(action).all():
-            raise ValueError(f"actions must be finite, got {action}")
+        action = check_action(action, len(ids))
         a = np.minimum(np.maximum(action, -1.0), 1.0)
         command = a * self.sc.action_scale
         jittered = ids[self.jitter_steps[ids] > 0]
@@ -254,20 +266,16 @@ class ServoCore:
         info = step_info(terms, command, self.ref[k], truth, self.t[k], diverged.copy())
         return obs, reward, terminated, truncated, info
 
-    def step_single(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
+    def step_single(self, action: float) -> tuple[np.ndarray, float, bool, bool, dict]:
         """step() for one simulation on an MjData, in plain Python floats: the same IEEE operations in the
         same order as the vectorised path (tests check single == vector env bit for bit), without numpy's
         per-call overhead. Used when there is no history, privileged observation or tachometer ripple."""
         if not self._fast:
-            obs, reward, term, trunc, info = self.step(np.asarray(action, dtype=float).reshape(1, -1))
+            obs, reward, term, trunc, info = self.step(np.array([action], dtype=float))
             return obs[0], float(reward[0]), bool(term[0]), bool(trunc[0]), {k: v[0] for k, v in info.items()}
         if self.ended[0]:
             raise RuntimeError("the episode has ended (truncated or diverged): call reset() first")
-        x = (
-            float(action[0])
-            if isinstance(action, np.ndarray) and action.ndim == 1
-            else float(np.asarray(action, dtype=float).reshape(-1)[0])
-        )
+        x = float(action)
         if not math.isfinite(x):
             raise ValueError(f"actions must be finite, got {action}")
         sc = self.sc
@@ -279,7 +287,7 @@ class ServoCore:
         b = self.backend
         b.data.ctrl[self.idx.drive_ctrl] = command
         mujoco.mj_step(b.model, b.data, self._substeps)
-        diverged = bool(self.diverged[0]) or self._badqacc.number > 0
+        diverged = bool(self.diverged[0]) or any(w.number > 0 for w in self._warnings)
         self.diverged[0] = diverged
         k = int(self.k[0]) + 1
         self.k[0] = k
@@ -430,3 +438,30 @@ def layout_of(scenario: Scenario):
     return observation_layout(
         len(spec.sensors), scenario.preview_steps, scenario.history, scenario.privileged, n_friction
     )
+
+
+def check_action(action: object, n: int) -> np.ndarray:
+    """(n,) float actions from one finite real scalar per env: shapes (), (1,) for n = 1, or (n,), (n, 1).
+    Anything else (strings, bytes, complex, bool, empty, other shapes, NaN) is a clear error."""
+    a = np.asarray(action)
+    if a.dtype.kind not in "fiu":
+        raise ValueError(f"actions must be real numbers, got dtype {a.dtype} ({action!r:.80})")
+    if a.size != n or a.shape not in ((n,), (n, 1)) + (((),) if n == 1 else ()):
+        want = "a scalar, (1,) or (1, 1)" if n == 1 else f"({n},) or ({n}, 1)"
+        raise ValueError(f"expected one action per env, shape {want}; got shape {a.shape}")
+    a = a.astype(float).reshape(n)
+    if not np.isfinite(a).all():
+        raise ValueError(f"actions must be finite, got {a}")
+    return a
+
+
+def check_options(options: object) -> dict:
+    """The pinned parameters of reset(options={"params": {...}}) ({} if none); other keys are errors."""
+    if options is None:
+        return {}
+    if not isinstance(options, dict) or set(options) - {"params"}:
+        raise ValueError(f"options: expected None or {{'params': {{...}}}}, got {options!r}")
+    pinned = options.get("params") or {}
+    if not isinstance(pinned, dict):
+        raise ValueError(f"options['params']: expected a mapping of randomization keys, got {pinned!r}")
+    return dict(pinned)

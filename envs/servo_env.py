@@ -16,7 +16,8 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
-from .core import ServoCore, layout_of
+from .core import ServoCore, check_action, check_options, layout_of
+from .sampler import check_seed
 from .scenario import Scenario, load_scenario
 from .step import OBS_CLIP, observation_layout
 
@@ -100,18 +101,33 @@ class ServoEnv(gym.Env, EzPickle):
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self._renderer: mujoco.Renderer | None = None
         self._ids = np.array([0])
+        self._started = False
 
     # --------------------------------------------------------------- Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         """Start an episode. With seed, the episode (parameters, initial state, noise, jitter) is a function
-        of the seed alone; without, the next seed comes from the env's generator."""
+        of the seed alone; without, the next seed comes from the env's generator.
+        options={"params": {"friction_scale": 1.3, ...}} pins parameters (randomization keys) for this
+        episode; the others are drawn as usual. info["params"] holds the episode's parameters and
+        info["pinned"] the pinned values."""
+        if seed is not None:
+            check_seed(seed)
+        pinned = check_options(options)
         super().reset(seed=seed)
         episode_seed = seed if seed is not None else int(self.np_random.integers(2**63))
-        obs = self.core.reset(self._ids, [episode_seed])
-        return obs[0], {"params": self.core.params_dict(0), "episode_seed": episode_seed, **self._truth()}
+        obs = self.core.reset(self._ids, [episode_seed], pinned)
+        self._started = True
+        info = {"params": self.core.params_dict(0), "pinned": pinned, "episode_seed": episode_seed}
+        return obs[0], {**info, **self._truth()}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
-        obs, reward, term, trunc, info = self.core.step_single(action)
+        if not self._started:
+            raise RuntimeError("step() before reset(): call reset() first")
+        if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":
+            x = float(action[0])  # the common case, without the general checks' cost
+        else:
+            x = float(check_action(action, 1)[0])
+        obs, reward, term, trunc, info = self.core.step_single(x)
         info.update(self._truth())
         if term or trunc:
             info["episode_metrics"] = self.core.metrics(0)

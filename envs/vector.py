@@ -13,19 +13,28 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .core import ServoCore
+from .core import ServoCore, check_action, check_options
+from .sampler import check_seed
 from .scenario import load_scenario
 from .step import OBS_CLIP
 
 
 def _seeds(seed: int | Sequence[int] | None, n: int, rng: np.random.Generator) -> list[int]:
+    """Env i's seed: seed + i, or the i-th of a list, or drawn; each checked as the single env checks it."""
     if seed is None:
         return [int(x) for x in rng.integers(2**63, size=n)]
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer | list | tuple | np.ndarray):
+        raise ValueError(f"seed: expected a non-negative integer or a list of {n}, got {seed!r}")
     if isinstance(seed, int | np.integer):
-        return [int(seed) + i for i in range(n)]
+        return [check_seed(seed) + i for i in range(n)]
     if len(seed) != n:
-        raise ValueError(f"expected {n} seeds, got {len(seed)}")
-    return [int(s) for s in seed]
+        raise ValueError(f"seed: expected {n} seeds, got {len(seed)}")
+    return [check_seed(s, f"seed[{i}]") for i, s in enumerate(seed)]
+
+
+def _seed_array(seeds: list[int]) -> np.ndarray:
+    """The seeds for info: uint64 when they fit, else Python ints (numpy's seeds have no upper bound)."""
+    return np.array(seeds, dtype=np.uint64 if max(seeds) < 2**64 else object)
 
 
 class ServoVectorEnv(VectorEnv):
@@ -50,10 +59,14 @@ class ServoVectorEnv(VectorEnv):
         episode_s: float | None = None,
         overrides: dict | None = None,
     ):
+        if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
+            raise ValueError(f"num_envs: expected a positive integer, got {num_envs!r}")
+        if isinstance(nthread, bool) or not isinstance(nthread, int | np.integer) or nthread < 0:
+            raise ValueError(f"nthread: expected a non-negative integer (0: all CPUs), got {nthread!r}")
         self.scenario = load_scenario(
             scenario, overrides, randomize=randomize, control_period_s=control_period_s, episode_s=episode_s
         )
-        self.num_envs = num_envs
+        self.num_envs = int(num_envs)
         self.core = ServoCore(self.scenario, n=num_envs, nthread=nthread, batch=True)
         self.single_observation_space = spaces.Box(-OBS_CLIP, OBS_CLIP, (self.core.obs_dim,), np.float32)
         self.single_action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
@@ -62,19 +75,35 @@ class ServoVectorEnv(VectorEnv):
         self._rngs = [np.random.default_rng(i) for i in range(num_envs)]
         self._done = np.zeros(num_envs, dtype=bool)
         self._all = np.arange(num_envs)
+        self._started = False
+
+    def __reduce__(self):
+        raise TypeError(
+            "ServoVectorEnv cannot be pickled: it holds a mujoco.batch.Batch and its threads. Build it where "
+            "it is used, from its arguments (ServoVectorEnv(scenario, num_envs, ...))."
+        )
 
     def reset(self, *, seed: int | Sequence[int] | None = None, options: dict | None = None):
-        super().reset(seed=seed if isinstance(seed, int | type(None)) else None)
+        """Reset every env (see the class docstring for seeds); options={"params": {...}} pins parameters
+        for these episodes. A failed reset (bad seed or options) leaves the env as it was."""
+        pinned = check_options(options)
+        if seed is not None:
+            _seeds(seed, self.num_envs, self.np_random)  # validate before any state changes
+        super().reset(seed=int(seed) if isinstance(seed, int | np.integer) else None)
         seeds = _seeds(seed, self.num_envs, self.np_random)
+        obs = self.core.reset(self._all, seeds, pinned)
         self._rngs = [np.random.default_rng(s) for s in seeds]
         self._done[:] = False
-        return self.core.reset(self._all, seeds), {"episode_seed": np.array(seeds, dtype=np.uint64)}
+        self._started = True
+        return obs, {"episode_seed": _seed_array(seeds), "pinned": pinned}
 
     def _next_seeds(self, ids: np.ndarray) -> list[int]:
         return [int(self._rngs[i].integers(2**63)) for i in ids]
 
     def step(self, actions: np.ndarray):
-        actions = np.asarray(actions, dtype=float).reshape(self.num_envs, -1)
+        if not self._started:
+            raise RuntimeError("step() before reset(): call reset() first")
+        actions = check_action(actions, self.num_envs)
         n = self.num_envs
         active, was_done = np.flatnonzero(~self._done), np.flatnonzero(self._done)
         obs = np.zeros((n, self.core.obs_dim), dtype=np.float32)
@@ -109,16 +138,18 @@ def make_sb3_vec_env(scenario: str | Path, num_envs: int, nthread: int = 0, seed
             self.venv = ServoVectorEnv(scenario, num_envs, nthread, **kwargs)
             super().__init__(num_envs, self.venv.single_observation_space, self.venv.single_action_space)
             self._seed = seed
-            self._actions = np.zeros((num_envs, 1))
+            self._actions = np.zeros(num_envs)
 
         def reset(self) -> np.ndarray:
             obs, _ = self.venv.reset(seed=self._seed)
             return obs
 
         def step_async(self, actions: np.ndarray) -> None:
-            self._actions = np.asarray(actions, dtype=float).reshape(num_envs, -1)
+            self._actions = check_action(actions, num_envs)
 
         def step_wait(self):
+            if not self.venv._started:
+                raise RuntimeError("step() before reset(): call reset() first")
             core = self.venv.core
             obs, reward, term, trunc, _ = core.step(self._actions)
             done = term | trunc
@@ -159,3 +190,17 @@ def make_sb3_vec_env(scenario: str | Path, num_envs: int, nthread: int = 0, seed
             return [self._seed + i for i in range(num_envs)]
 
     return SB3ServoVecEnv()
+
+
+def _vector_entry(default_scenario: str):
+    """A gym.make_vec entry point (vectorization_mode="vector_entry_point") over mujoco.batch."""
+
+    def make(num_envs: int = 1, scenario: str | Path | None = None, **kwargs: Any) -> ServoVectorEnv:
+        return ServoVectorEnv(scenario or default_scenario, num_envs, **kwargs)
+
+    return make
+
+
+m220_vector = _vector_entry("m220_regulation")
+flexible_servo_vector = _vector_entry("flexible_speed_step")
+kang_robot_vector = _vector_entry("kang_regulation")

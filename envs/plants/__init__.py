@@ -35,7 +35,9 @@ def plant_config(name: str | Path, overrides: dict | None = None) -> dict[str, A
 
 def plant_spec(name: str | Path, overrides: dict | None = None, friction_model: str = "lugre") -> PlantSpec:
     """Build the SI PlantSpec of preset `name` with YAML-level overrides; validates every value, every
-    key (unknown and missing keys are errors naming the file)."""
+    key (unknown and missing keys are errors naming the file) and every corner of the randomization."""
+    from .params import check_randomization
+
     if friction_model not in FRICTION_MODELS:
         raise ConfigError("friction_model", f"{friction_model!r} not in {list(FRICTION_MODELS)}")
     cfg = Node(plant_config(name, overrides), preset_path(name, "plants").name)
@@ -65,6 +67,7 @@ def plant_spec(name: str | Path, overrides: dict | None = None, friction_model: 
                 )
     if friction_model != "lugre":
         spec = replace(spec, joints=tuple(_strip(j, friction_model) for j in spec.joints))
+    check_randomization(spec)
     return spec
 
 

@@ -202,7 +202,11 @@ def step_counts(
     gain: float, times: tuple[float, ...], v: float = 0.25, overrides: dict | None = None
 ) -> np.ndarray:
     """Drive-encoder counts of the simulated M220 open-loop step of v volts at the given times."""
-    ov = {"identified": {"gain_counts_per_v_s2": float(gain)}}
+    # a nominal experiment: no randomization, so other gains do not trip the range checks (σ0 ∝ gain)
+    ov = {
+        "identified": {"gain_counts_per_v_s2": float(gain)},
+        "randomization": {k: [1.0, 1.0] for k in ("sigma0_scale", "inertia_scale")},
+    }
     for key, value in (overrides or {}).items():
         ov.setdefault(key, {}).update(value)
     sim = PlantSim("m220", ov)

@@ -6,6 +6,10 @@ import math
 
 from .spec import PlantSpec
 
+# Each shaft body carries a tiny explicit inertia (MuJoCo needs one on moving bodies) and visual geoms
+# with no mass; the joint's armature is the shaft inertia minus it, so the total is the preset's J.
+VISUAL_MASS_KG, VISUAL_INERTIA = 1e-9, 1e-12  # kg, kg·m²
+
 
 def friction_joints(spec: PlantSpec) -> list[str]:
     """Joints that carry a friction actuator, in actuator order."""
@@ -18,12 +22,16 @@ def to_mjcf(spec: PlantSpec) -> str:
     bodies, actuators, extra = [], [], []
     for i, j in enumerate(spec.joints):
         x = 0.25 * i
-        fl = j.friction.fc if (j.friction is not None and spec.friction_model == "coulomb") else 0.0
+        coulomb = j.friction is not None and spec.friction_model == "coulomb"
+        fl = j.friction.fc if coulomb else 0.0
+        damping = j.viscous + j.friction.sigma2 if coulomb else j.viscous  # Coulomb + viscous
         bodies.append(
             f'<body name="{j.name}" pos="{x} 0 0"><joint name="{j.name}" type="hinge" axis="0 0 1" '
-            f'armature="{j.inertia!r}" damping="{j.viscous!r}" frictionloss="{fl!r}"/>'
-            f'<geom type="cylinder" size="0.08 0.01" mass="1e-6" rgba="0.6 0.6 0.7 1"/>'
-            f'<geom type="box" pos="0.05 0 0.012" size="0.03 0.005 0.002" mass="1e-6" '
+            f'armature="{j.inertia - VISUAL_INERTIA!r}" damping="{damping!r}" frictionloss="{fl!r}"/>'
+            f'<inertial pos="0 0 0" mass="{VISUAL_MASS_KG!r}" diaginertia="{VISUAL_INERTIA!r} '
+            f'{VISUAL_INERTIA!r} {VISUAL_INERTIA!r}"/>'
+            f'<geom type="cylinder" size="0.08 0.01" mass="0" rgba="0.6 0.6 0.7 1"/>'
+            f'<geom type="box" pos="0.05 0 0.012" size="0.03 0.005 0.002" mass="0" '
             f'rgba="0.9 0.3 0.2 1"/></body>'
         )
     actuators.append(

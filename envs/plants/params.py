@@ -4,15 +4,22 @@ an already compiled MjModel (or per simulation into a mujoco.batch.Batch) withou
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from itertools import product
+from typing import Any
 
 import mujoco
 import numpy as np
 
 from ..config import ConfigError, nonneg, number, positive
 from ..friction import LuGreParams, check_numerics
-from .mjcf import friction_joints
-from .spec import PlantSpec
+from ..sampler import stream
+from .mjcf import VISUAL_INERTIA, friction_joints
+from .spec import RANDOMIZATION_KEYS, PlantSpec
+
+# keys drawn once per frictional joint
+PER_JOINT = ("friction_scale", "asymmetry_shift", "sigma0_scale", "stribeck_velocity_scale", "viscous_scale")
 
 
 @dataclass(frozen=True)
@@ -53,45 +60,68 @@ class EpisodeParams:
         )
 
     @classmethod
-    def draw(
-        cls,
-        spec: PlantSpec,
-        rng: np.random.Generator | int,
-        ranges: dict[str, tuple[float, float]] | None = None,
-    ) -> EpisodeParams:
-        """Draw from `ranges` (default: the preset's randomization section) with a seed or Generator.
-
-        Every range is drawn, in a fixed order, whether or not it is used, so the same seed gives the
-        same parameters on every machine and in single or vector envs.
-        """
-        rng = np.random.default_rng(rng) if not isinstance(rng, np.random.Generator) else rng
-        r = dict(spec.randomization if ranges is None else ranges)
-
-        def u(key: str, default: float) -> float:
-            lo, hi = r.get(key, (default, default))
-            return float(rng.uniform(lo, hi))
-
-        base = cls.nominal(spec)
-        inertia_scale = u("inertia_scale", 1.0)
-        spring_scale = u("spring_scale", 1.0)
-        delay = u("delay_s", spec.delay)
-        noise = u("noise_scale", 1.0)
-        friction = []
-        for p in base.friction:
-            level, shift = u("friction_scale", 1.0), u("asymmetry_shift", 0.0)
-            s0, vs, visc = u("sigma0_scale", 1.0), u("stribeck_velocity_scale", 1.0), u("viscous_scale", 1.0)
-            friction.append(
-                p.scaled(level=level, sigma0=s0, vs=vs, viscous=visc, extra_bias=shift * p.fc * level)
+    def from_values(cls, spec: PlantSpec, values: Mapping[str, Any]) -> EpisodeParams:
+        """The nominal parameters changed by randomization-key values (spec.RANDOMIZATION_KEYS): scales are
+        factors, asymmetry_shift a fraction of the symmetric Coulomb level, delay_s / jitter_s seconds.
+        The friction keys take one value for all frictional joints or a sequence, one per joint."""
+        unknown = sorted(set(values) - set(RANDOMIZATION_KEYS))
+        if unknown:
+            raise ConfigError(
+                "params", f"unknown parameter(s) {unknown}; allowed: {sorted(RANDOMIZATION_KEYS)}"
             )
+        base = cls.nominal(spec)
+        nf = len(base.friction)
+
+        def per_joint(key: str, default: float) -> list[float]:
+            v = values.get(key, default)
+            v = list(v) if isinstance(v, list | tuple | np.ndarray) else [v] * nf
+            if len(v) != nf:
+                raise ConfigError(f"params.{key}", f"expected 1 or {nf} values (one per friction joint)")
+            return [number(x, f"params.{key}") for x in v]
+
+        def one(key: str, default: float) -> float:
+            return number(values.get(key, default), f"params.{key}")
+
+        level, shift = per_joint("friction_scale", 1.0), per_joint("asymmetry_shift", 0.0)
+        s0, vs = per_joint("sigma0_scale", 1.0), per_joint("stribeck_velocity_scale", 1.0)
+        visc = per_joint("viscous_scale", 1.0)
+        friction = tuple(
+            p.scaled(
+                level=level[i], sigma0=s0[i], vs=vs[i], viscous=visc[i], extra_bias=shift[i] * p.fc * level[i]
+            )
+            for i, p in enumerate(base.friction)
+        )
+        inertia, spring = one("inertia_scale", 1.0), one("spring_scale", 1.0)
         return replace(
             base,
-            friction=tuple(friction),
-            inertia=tuple(x * inertia_scale for x in base.inertia),
-            spring_stiffness=tuple(x * spring_scale for x in base.spring_stiffness),
-            delay=delay,
-            noise_scale=noise,
-            jitter=u("jitter_s", spec.jitter),  # drawn last: earlier draws keep their values
+            friction=friction,
+            inertia=tuple(x * inertia for x in base.inertia),
+            spring_stiffness=tuple(x * spring for x in base.spring_stiffness),
+            delay=one("delay_s", spec.delay),
+            noise_scale=one("noise_scale", 1.0),
+            jitter=one("jitter_s", spec.jitter),
         )
+
+    @classmethod
+    def draw_values(cls, spec: PlantSpec, seed: int) -> dict[str, Any]:
+        """One value per randomization key of the preset (per friction joint for the friction keys), each
+        from its own named stream of the seed (envs/sampler.py)."""
+        nf = sum(j.friction is not None for j in spec.joints)
+        out: dict[str, Any] = {}
+        for key, (lo, hi) in spec.randomization.items():
+            rng = stream(seed, key)
+            out[key] = (
+                tuple(float(x) for x in rng.uniform(lo, hi, nf))
+                if key in PER_JOINT
+                else float(rng.uniform(lo, hi))
+            )
+        return out
+
+    @classmethod
+    def draw(cls, spec: PlantSpec, seed: int, pinned: Mapping[str, Any] | None = None) -> EpisodeParams:
+        """The episode's parameters: drawn from the preset's ranges with the seed, then `pinned` values
+        (randomization keys, e.g. {"friction_scale": 1.3}) replace the drawn ones."""
+        return cls.from_values(spec, {**cls.draw_values(spec, seed), **(pinned or {})})
 
     def validate(self, spec: PlantSpec) -> None:
         """Reject unphysical values and (σ, J, h, integrator) combinations outside the admissible region."""
@@ -199,7 +229,7 @@ def _fields(spec: PlantSpec, idx: ModelIndex, p: EpisodeParams) -> dict[str, lis
         )
     }
     for d, J, c in zip(idx.dofs, p.inertia, p.viscous, strict=True):
-        w["dof_armature"].append(((d,), J))
+        w["dof_armature"].append(((d,), J - VISUAL_INERTIA))
         w["dof_damping"].append(((d,), c))
     fdofs = [idx.dofs[spec.joint_index(n)] for n in friction_joints(spec)]
     for a, d, f in zip(idx.friction, fdofs, p.friction, strict=True):
@@ -208,8 +238,9 @@ def _fields(spec: PlantSpec, idx: ModelIndex, p: EpisodeParams) -> dict[str, lis
             w["actuator_dynprm"] += [((a, 5), f.sigma0), ((a, 6), f.sigma1)]
             w["actuator_biasprm"] += [((a, 3), f.fc), ((a, 4), f.fs), ((a, 5), f.vs)]
             w["actuator_damping"].append(((a,), f.sigma2))
-        elif spec.friction_model == "coulomb":
+        elif spec.friction_model == "coulomb":  # Coulomb + viscous, as in the documents
             w["dof_frictionloss"].append(((d,), f.fc))
+            w["dof_damping"].append(((d,), p.viscous[idx.dofs.index(d)] + f.sigma2))
     w["actuator_gear"].append(((idx.drive, 0), p.actuator_gain))
     w["actuator_delay"].append(((idx.drive,), p.delay_steps(spec) * spec.timestep))
     if idx.rate >= 0:
@@ -252,3 +283,29 @@ def apply_batch(
             for i, value in w[name]:
                 arr[(sim, *i)] = value
     batch.set_const(ids)
+
+
+def check_randomization(spec: PlantSpec) -> None:
+    """Reject randomization ranges some draw of which fails the physical or numerics checks: every corner
+    of the ranges (all low/high combinations of the keys the checks depend on; the checks are monotone in
+    each key) is built and validated, so no seed can be rejected at reset. The error names the key alone
+    when one key's range fails by itself, else the keys whose corner fails."""
+    keys = [k for k in spec.randomization if k not in ("noise_scale", "delay_s", "jitter_s")]
+
+    def fails(values: dict[str, float]) -> str | None:
+        try:
+            EpisodeParams.from_values(spec, values).validate(spec)
+        except ConfigError as e:
+            return str(e)
+        return None
+
+    for key in keys:
+        for end in spec.randomization[key]:
+            if (why := fails({key: end})) is not None:
+                raise ConfigError(f"randomization.{key}", f"the draw at {end} fails a check ({why})")
+    for corner in product(*(spec.randomization[k] for k in keys)):
+        values = dict(zip(keys, corner, strict=True))
+        if (why := fails(values)) is not None:
+            raise ConfigError(
+                "randomization", f"the draw at the corner {values} fails a check ({why}); narrow the ranges"
+            )

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from ..core import DIVERGENCE_WARNINGS
+from ..sampler import JITTER, SENSOR_NOISE, stream
 from ..sensors import SensorArrays
 from . import plant_spec
 from .mjcf import to_mjcf
@@ -70,9 +72,8 @@ class PlantSim:
         return self._result()
 
     def _seed(self, seed: int) -> None:
-        """Independent streams for sensor noise and delay jitter, both from the episode seed."""
-        noise, jitter = np.random.SeedSequence(seed).spawn(2)
-        self.rng, self.jitter_rng = np.random.default_rng(noise), np.random.default_rng(jitter)
+        """Sensor noise and delay jitter streams of the episode seed, named as in the env (sampler.py)."""
+        self.rng, self.jitter_rng = stream(seed, SENSOR_NOISE), stream(seed, JITTER)
 
     def step(self, u: float, nstep: int | None = None) -> StepResult:
         """Hold command u for one control period (or nstep physics steps); read the sensors at the end."""
@@ -93,7 +94,7 @@ class PlantSim:
         diverged = bool(
             not np.all(np.isfinite(d.qpos))
             or not np.all(np.isfinite(d.qvel))
-            or d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0
+            or any(d.warning[i].number > 0 for i in DIVERGENCE_WARNINGS)
         )
         noise = self.sensors.noise([self.rng], np.array([self.params.noise_scale]))
         meas = self.sensors.measure(d.qpos[None], d.qvel[None], noise)[0]

@@ -1,0 +1,133 @@
+"""Foundation v2 hardening: each behaviour found by trying the envs as a new user would (issue 7)."""
+
+import pickle
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import frictiongym.envs  # noqa: F401
+from frictiongym.envs.config import ConfigError
+from frictiongym.envs.plants import plant_spec
+from frictiongym.envs.plants.params import EpisodeParams
+from frictiongym.envs.plants.sim import PlantSim
+from frictiongym.envs.servo_env import ServoEnv
+from frictiongym.envs.vector import ServoVectorEnv
+
+
+@pytest.mark.parametrize("plant", ["kang_robot", "m220", "flexible_servo"])
+def test_every_draw_passes_the_checks(plant):
+    """The corner check at load makes every seed's parameters valid (Kang's seed 66 failed before)."""
+    spec = plant_spec(plant)
+    for seed in [66, *range(2000)]:
+        EpisodeParams.draw(spec, seed).validate(spec)
+
+
+@pytest.mark.parametrize(
+    ("key", "rng"), [("sigma0_scale", [0.5, 5.0]), ("inertia_scale", [0.1, 1.0]), ("friction_scale", [0, 0])]
+)
+def test_bad_randomization_ranges_rejected_at_load_naming_the_field(key, rng):
+    with pytest.raises(ConfigError) as e:
+        plant_spec("kang_robot", {"randomization": {key: rng}})
+    assert e.value.field.startswith(f"randomization.{key}")  # the range or its bad end
+
+
+def test_huge_state_ends_the_episode_as_diverged():
+    env = ServoEnv("kang_regulation", overrides={"initial_state": {"qpos": [[2e10, 2e10]]}})
+    env.reset(seed=0)
+    _, reward, term, _, info = env.step(np.zeros(1, np.float32))
+    assert term and info["diverged"] and np.isfinite(reward)
+    assert reward < -(env.scenario.reward_weights["tracking"] * 1e6)  # below any step that did not diverge
+
+
+def test_coulomb_model_keeps_the_viscous_term():
+    """3 N·m on Kang's rotor with Coulomb + viscous (σ2 = 0.86 N·m·s/rad): steady speed
+    (3 - T_C+)/σ2 ≈ 2.0 rad/s, reached within 10 s (it was 14 rad/s without the viscous term)."""
+    sim = PlantSim("kang_robot", friction_model="coulomb")
+    sim.reset()
+    for _ in range(500):
+        r = sim.step(3.0)
+    p = sim.spec.drive_friction
+    assert r.qvel[0] == pytest.approx((3.0 - p.levels()["coulomb_pos"]) / p.sigma2, rel=0.02)
+
+
+@pytest.mark.parametrize("bad", ["x", b"1", 1j, True, np.array([]), np.zeros(2), np.zeros((3, 2))])
+def test_actions_other_than_one_finite_real_are_clear_errors(bad):
+    env = ServoEnv("kang_regulation")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="action"):
+        env.step(bad)
+
+
+def test_step_before_reset_is_an_error():
+    with pytest.raises(RuntimeError, match="reset"):
+        ServoEnv("kang_regulation").step(np.zeros(1))
+    with pytest.raises(RuntimeError, match="reset"):
+        ServoVectorEnv("kang_regulation", 2).step(np.zeros(2))
+
+
+def test_vector_env_seeds_checks_failed_reset_and_pickling():
+    venv = ServoVectorEnv("kang_regulation", 2)
+    _, info = venv.reset(seed=2**64)  # works as in the single env
+    assert list(info["episode_seed"]) == [2**64, 2**64 + 1]
+    venv.reset(seed=5)
+    for bad in (1.5, -1, True):
+        with pytest.raises(ValueError, match="seed"):
+            venv.reset(seed=bad)
+    assert np.array_equal(venv.step(np.zeros(2))[0], _stepped_once(5))  # failed resets changed nothing
+    with pytest.raises(TypeError, match="cannot be pickled"):
+        pickle.dumps(venv)
+    with pytest.raises(ValueError, match="num_envs"):
+        ServoVectorEnv("kang_regulation", 2.5)
+
+
+def test_make_vec_uses_the_batched_env_and_matches_single_envs():
+    venv = gym.make_vec("frictiongym/KangRobot-v0", num_envs=2, vectorization_mode="vector_entry_point")
+    assert isinstance(venv, ServoVectorEnv)
+    obs, _ = venv.reset(seed=3)
+    single = ServoEnv("kang_regulation")
+    assert np.array_equal(obs[1], single.reset(seed=4)[0])
+
+
+def test_pinned_parameters_are_applied_and_echoed():
+    env = ServoEnv("kang_regulation", randomize=True)
+    _, free = env.reset(seed=9)
+    _, info = env.reset(seed=9, options={"params": {"friction_scale": 1.3}})
+    assert info["pinned"] == {"friction_scale": 1.3}
+    nominal = plant_spec("kang_robot").drive_friction
+    assert info["params"]["friction"][0]["fs"] == pytest.approx(1.3 * nominal.fs)
+    assert info["params"]["inertia"] == free["params"]["inertia"]  # the other draws are unchanged
+    with pytest.raises(ConfigError, match="unknown parameter"):
+        env.reset(seed=9, options={"params": {"frction_scale": 1.3}})
+
+
+def test_plantsim_noise_matches_the_env_for_the_same_seed():
+    ov = {"sensors": {"encoder": {"noise_std_deg": 0.01}}}
+    env = ServoEnv("kang_regulation", overrides={"plant_overrides": ov})
+    env.reset(seed=4)
+    obs, *_ = env.step(np.zeros(1, np.float32))
+    sim = PlantSim("kang_robot", ov)
+    sim.reset(qpos=[0.349066], seed=4)
+    r = sim.step(0.0)
+    assert obs[0] == np.float32(r.measurement[0] / env.scenario.output_scale)
+
+
+def test_model_inertia_is_exactly_the_presets():
+    """Visual geoms add no mass: J·α = τ at rest without friction gives J1 = 22e-6 kg·m² (§3.1)."""
+    sim = PlantSim("flexible_servo", friction_model="none")
+    sim.reset()
+    sim.step(1.0, nstep=1)
+    assert sim.spec.actuator_gain / sim.data.qacc[sim.dofs[0]] == pytest.approx(22e-6, rel=1e-9)
+
+
+def test_unknown_yaml_key_names_the_file():
+    with pytest.raises(ConfigError, match=r"kang_robot\.yaml: rotor\.inertia"):
+        plant_spec("kang_robot", {"rotor": {"inertia": 1.0}})
+    with pytest.raises(ConfigError, match=r"configuration\.backlash_device"):
+        plant_spec("m220", {"configuration": {"backlash_device": "no"}})
+
+
+def _stepped_once(seed: int) -> np.ndarray:
+    venv = ServoVectorEnv("kang_regulation", 2)
+    venv.reset(seed=seed)
+    return venv.step(np.zeros(2))[0]
