@@ -32,10 +32,8 @@ class SB3Policy(Controller):
         return cls(getattr(stable_baselines3, algo).load(str(path)), plants, name or Path(path).stem)
 
     def why_not(self, scenario: Scenario) -> str | None:
-        from frictiongym.envs.core import layout_of
-
         want = tuple(self.model.observation_space.shape)
-        got = (layout_of(scenario).size,)
+        got = (scenario.layout.size,)
         if got != want:
             return f"the model observes shape {want}, the scenario gives {got}"
         if self.plants and scenario.spec.name not in self.plants:

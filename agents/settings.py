@@ -9,6 +9,7 @@ any field.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from functools import cache
 from typing import Any, TypeVar
 
@@ -20,13 +21,23 @@ T = TypeVar("T")
 
 @cache
 def _raw() -> dict[str, Any]:
-    return load_yaml(configs_dir() / FILE)
+    """controllers.yaml, loaded once; a top-level section no family reads is an error naming it."""
+    from .classical import SETTINGS
+
+    data = load_yaml(configs_dir() / FILE)
+    known = {family.SECTION for family in SETTINGS} | {KNOWLEDGE}
+    for key in data:
+        if key not in known:
+            raise ConfigError(key, f"unknown section; allowed: {sorted(known)}", FILE)
+    return data
 
 
-def section(name: str) -> Node:
-    """A fresh checked view of one top-level section of controllers.yaml."""
-    root = Node(_raw(), FILE)
-    return root.section(name)
+def read(name: str, build: Callable[[Node], T]) -> T:
+    """build(section) for one top-level section of controllers.yaml; keys it did not read are errors."""
+    node = Node(_raw(), FILE).section(name)
+    out = build(node)
+    node.done()
+    return out
 
 
 def with_overrides(settings: T, overrides: dict[str, Any]) -> T:
@@ -38,23 +49,10 @@ def with_overrides(settings: T, overrides: dict[str, Any]) -> T:
     return dataclasses.replace(settings, **overrides)
 
 
-def check_file() -> None:
-    """Read every family's defaults and reject any top-level section nobody reads."""
-    from . import classical
-
-    root = Node(_raw(), FILE)
-    for family in classical.SETTINGS:
-        root.section(family.SECTION)
-        family.defaults()
-    root.section("knowledge")
-    knowledge_defaults()
-    root.done()
+KNOWLEDGE = "knowledge"
 
 
 @cache
 def knowledge_defaults() -> dict[str, float]:
     """What friction compensators believe about the plant, relative to the nominal preset (knowledge:)."""
-    k = section("knowledge")
-    out = {"static_friction_scale": k.positive("static_friction_scale", 10.0)}
-    k.done()
-    return out
+    return read(KNOWLEDGE, lambda k: {"static_friction_scale": k.positive("static_friction_scale", 10.0)})

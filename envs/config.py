@@ -16,6 +16,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 
 
@@ -35,7 +36,7 @@ class ConfigError(ValueError):
     value came from one) and the allowed range."""
 
     def __init__(self, field: str, message: str, source: str = ""):
-        self.field, self.source = field, source
+        self.field, self.message, self.source = field, message, source
         super().__init__(f"{source}: {field}: {message}" if source else f"{field}: {message}")
 
 
@@ -127,9 +128,9 @@ def nonneg(value: Any, field: str, high: float = math.inf) -> float:
     return number(value, field, 0.0, high)
 
 
-def integer(value: Any, field: str, low: int = -(2**63), high: int = 2**63 - 1) -> int:
-    """An integer (not a bool, not a float such as 2.7) in [low, high]."""
-    if isinstance(value, bool) or not isinstance(value, int):
+def integer(value: Any, field: str, low: float = -math.inf, high: float = math.inf) -> int:
+    """An integer (Python or numpy; not a bool, not a float such as 2.7) in [low, high]."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, int | np.integer):
         raise ConfigError(field, f"expected an integer, got {value!r}")
     if not low <= value <= high:
         raise ConfigError(field, f"{value} is outside the allowed range [{low}, {high}]")
@@ -204,7 +205,7 @@ class Node:
         try:
             return fn(value, self.field(key), *args, **kw)
         except ConfigError as e:
-            raise ConfigError(e.field, str(e).split(": ", 1)[1], self.source) from None
+            raise ConfigError(e.field, e.message, self.source) from None
 
     def number(self, key: str, low: float = -math.inf, high: float = math.inf, **kw: Any) -> float:
         return self._checked(number, key, low, high, **kw)
@@ -215,7 +216,7 @@ class Node:
     def nonneg(self, key: str, high: float = math.inf, **kw: Any) -> float:
         return self._checked(nonneg, key, high, **kw)
 
-    def integer(self, key: str, low: int = -(2**63), high: int = 2**63 - 1, **kw: Any) -> int:
+    def integer(self, key: str, low: float = -math.inf, high: float = math.inf, **kw: Any) -> int:
         return self._checked(integer, key, low, high, **kw)
 
     def boolean(self, key: str, **kw: Any) -> bool:

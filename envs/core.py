@@ -23,9 +23,8 @@ from .sensors import SensorArrays
 from .step import (
     ARRAY,
     FLOAT,
-    OBS_CLIP,
+    diverged_reward,
     encoder_reading,
-    observation_layout,
     reward_terms,
     reward_total,
     sanitize_observation,
@@ -185,10 +184,9 @@ class ServoCore:
                 strict=True,
             )
         ]
-        self.layout = layout_of(sc)
+        self.layout = sc.layout
         self.obs_dim = self.layout.size
-        w = sc.reward_weights  # a diverged step scores below the worst step that did not diverge
-        self.diverged_reward = -(w["tracking"] * OBS_CLIP + w["effort"] + 4.0 * w["smoothness"]) - 1.0
+        self.diverged_reward = diverged_reward(sc.reward_weights)
 
     # ------------------------------------------------------------------ reset
     def draw(
@@ -212,8 +210,6 @@ class ServoCore:
         returns their observations. Everything is drawn and checked before any state changes."""
         draws = [self.draw(s, pinned) for s in seeds]
         params = [d[0] for d in draws]
-        for p in params:
-            p.validate(self.sc.spec)
         self.backend.apply(ids, params)
         self.backend.reset_state(ids, np.array([d[1] for d in draws]), np.array([d[2] for d in draws]))
         spec = self.sc.spec
@@ -429,15 +425,6 @@ class ServoCore:
             lc_min_amp=self.lc_min_amp,
             reversal_half_window=max(0.25, 5 * self.sc.control_period),
         )
-
-
-def layout_of(scenario: Scenario):
-    """The scenario's ObservationLayout."""
-    spec = scenario.spec
-    n_friction = sum(j.friction is not None for j in spec.joints)
-    return observation_layout(
-        len(spec.sensors), scenario.preview_steps, scenario.history, scenario.privileged, n_friction
-    )
 
 
 def check_action(action: object, n: int) -> np.ndarray:

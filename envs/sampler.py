@@ -11,16 +11,16 @@ import zlib
 
 import numpy as np
 
+from .config import integer
+
 # Names of the non-parameter streams (parameters use their randomization key as the name).
 INITIAL_STATE, SENSOR_NOISE, JITTER = "initial_state", "sensor_noise", "jitter"
 
 
 def check_seed(seed: object, field: str = "seed") -> int:
-    """A seed is a non-negative integer (numpy's SeedSequence accepts any size); bools and floats are
-    errors that name the field."""
-    if isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0:
-        raise ValueError(f"{field}: expected a non-negative integer, got {seed!r}")
-    return int(seed)
+    """A seed is a non-negative integer of any size (numpy's SeedSequence has no upper bound); bools and
+    floats are errors that name the field."""
+    return integer(seed, field, 0)
 
 
 def stream(seed: int, name: str) -> np.random.Generator:

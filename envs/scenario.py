@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -12,6 +13,8 @@ import numpy as np
 
 from .config import ConfigError, configs_dir, interval, load_yaml, merge, nonneg, number, positive
 from .plants import PlantSpec, plant_spec
+from .plants.mjcf import friction_joints
+from .step import ObservationLayout, observation_layout
 
 REFERENCE_TYPES = ("constant", "steps", "sine", "triangle")
 
@@ -70,6 +73,17 @@ class Scenario:
     @property
     def control_period(self) -> float:
         return self.spec.control_period
+
+    @cached_property
+    def layout(self) -> ObservationLayout:
+        """Named slices of this scenario's observation (envs/step.py)."""
+        return observation_layout(
+            len(self.spec.sensors),
+            self.preview_steps,
+            self.history,
+            self.privileged,
+            len(friction_joints(self.spec)),
+        )
 
     @property
     def task(self) -> str:

@@ -16,7 +16,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import EzPickle
 
-from .core import ServoCore, check_action, check_options, layout_of
+from .core import ServoCore, check_action, check_options
 from .sampler import check_seed
 from .scenario import Scenario, load_scenario
 from .step import OBS_CLIP, observation_layout
@@ -43,7 +43,7 @@ OBSERVATION_DOC = f"""
 def decode_observation(scenario: Scenario, obs: np.ndarray) -> dict[str, Any]:
     """Physical readings from an observation, by the scenario's layout: sensors (rad or V), reference,
     preview, held command."""
-    lay, s = layout_of(scenario), scenario.output_scale
+    lay, s = scenario.layout, scenario.output_scale
     return {
         "sensors": dict(
             zip([x.name for x in scenario.spec.sensors], obs[lay.slice("sensors")] * s, strict=True)

@@ -141,6 +141,12 @@ def reward_terms(e: Any, a: Any, a_prev: Any, weights: Mapping[str, float], ops:
     }
 
 
+def diverged_reward(weights: Mapping[str, float]) -> float:
+    """The reward of a diverged step: 1 below the worst any other step can score (each term of
+    reward_terms is at least -w·CLIP, -w_u and -4·w_du for actions in [-1, 1])."""
+    return -(weights["tracking"] * OBS_CLIP + weights["effort"] + 4.0 * weights["smoothness"]) - 1.0
+
+
 def reward_total(terms: Mapping[str, Any]) -> Any:
     """The reward: the sum of its terms."""
     return terms["reward_tracking"] + terms["reward_effort"] + terms["reward_smoothness"]

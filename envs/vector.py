@@ -13,6 +13,7 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from .config import integer
 from .core import ServoCore, check_action, check_options
 from .sampler import check_seed
 from .scenario import load_scenario
@@ -59,10 +60,8 @@ class ServoVectorEnv(VectorEnv):
         episode_s: float | None = None,
         overrides: dict | None = None,
     ):
-        if isinstance(num_envs, bool) or not isinstance(num_envs, int | np.integer) or num_envs < 1:
-            raise ValueError(f"num_envs: expected a positive integer, got {num_envs!r}")
-        if isinstance(nthread, bool) or not isinstance(nthread, int | np.integer) or nthread < 0:
-            raise ValueError(f"nthread: expected a non-negative integer (0: all CPUs), got {nthread!r}")
+        integer(num_envs, "num_envs", 1)
+        integer(nthread, "nthread", 0)  # 0: all CPUs
         self.scenario = load_scenario(
             scenario, overrides, randomize=randomize, control_period_s=control_period_s, episode_s=episode_s
         )
@@ -87,10 +86,9 @@ class ServoVectorEnv(VectorEnv):
         """Reset every env (see the class docstring for seeds); options={"params": {...}} pins parameters
         for these episodes. A failed reset (bad seed or options) leaves the env as it was."""
         pinned = check_options(options)
-        if seed is not None:
-            _seeds(seed, self.num_envs, self.np_random)  # validate before any state changes
+        given = None if seed is None else _seeds(seed, self.num_envs, self.np_random)  # checked first
         super().reset(seed=int(seed) if isinstance(seed, int | np.integer) else None)
-        seeds = _seeds(seed, self.num_envs, self.np_random)
+        seeds = given if given is not None else _seeds(None, self.num_envs, self.np_random)
         obs = self.core.reset(self._all, seeds, pinned)
         self._rngs = [np.random.default_rng(s) for s in seeds]
         self._done[:] = False

@@ -131,3 +131,18 @@ def _stepped_once(seed: int) -> np.ndarray:
     venv = ServoVectorEnv("kang_regulation", 2)
     venv.reset(seed=seed)
     return venv.step(np.zeros(2))[0]
+
+
+def test_controllers_yaml_unknown_keys_name_the_file(monkeypatch):
+    from frictiongym.agents import settings
+
+    raw = settings.load_yaml(settings.configs_dir() / settings.FILE)
+    for bad, match in (
+        ({**raw, "southwrd": {}}, r"controllers\.yaml: southwrd: unknown section"),
+        ({**raw, "pid": {**raw["pid"], "zta": 1.0}}, r"controllers\.yaml: pid\.zta: unknown key"),
+    ):
+        monkeypatch.setattr(settings, "load_yaml", lambda *_a, bad=bad, **_k: bad)
+        settings._raw.cache_clear()
+        with pytest.raises(ConfigError, match=match):
+            settings.read("pid", lambda s: (s.get("integrator_pole_ratio"), s.get("loops")))
+    settings._raw.cache_clear()

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any, ClassVar
 
+from frictiongym.envs.config import Node
 from frictiongym.envs.scenario import Scenario
 
 from .. import settings as cfg
@@ -28,11 +29,11 @@ class LuGreObserverSettings:
     @classmethod
     @cache
     def defaults(cls) -> LuGreObserverSettings:
-        s = cfg.section(cls.SECTION)
-        g = s.section("observer_gain")
-        out = cls({plant: g.nonneg(plant, 1e6) for plant in list(g.keys())})
-        s.done()
-        return out
+        def build(s: Node) -> LuGreObserverSettings:
+            g = s.section("observer_gain")
+            return cls({plant: g.nonneg(plant, 1e6) for plant in list(g.keys())})
+
+        return cfg.read(cls.SECTION, build)
 
 
 class LuGreObserver(PID):

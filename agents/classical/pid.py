@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any, ClassVar
 
+from frictiongym.envs.config import Node
 from frictiongym.envs.plants import PlantSpec
 
 from .. import settings as cfg
@@ -45,25 +46,25 @@ class PIDSettings:
     @classmethod
     @cache
     def defaults(cls) -> PIDSettings:
-        s = cfg.section(cls.SECTION)
-        loops = {}
-        ls = s.section("loops")
-        for plant in list(ls.keys()):
-            p = ls.section(plant)
-            hz, rad = p.get("natural_frequency_hz"), p.get("natural_frequency_rad_s")
-            if hz is not None and rad is not None:
-                raise p.error("natural_frequency_hz", "give natural_frequency_hz or _rad_s, not both")
-            wn = (
-                2 * math.pi * p.positive("natural_frequency_hz", 1e4)
-                if hz is not None
-                else p.positive("natural_frequency_rad_s", 1e5)
-                if rad is not None
-                else None
-            )
-            loops[plant] = LoopDesign(p.positive("zeta", 10.0), wn)
-        out = cls(s.positive("integrator_pole_ratio", 100.0), loops)
-        s.done()
-        return out
+        def build(s: Node) -> PIDSettings:
+            loops = {}
+            ls = s.section("loops")
+            for plant in list(ls.keys()):
+                p = ls.section(plant)
+                hz, rad = p.get("natural_frequency_hz"), p.get("natural_frequency_rad_s")
+                if hz is not None and rad is not None:
+                    raise p.error("natural_frequency_hz", "give natural_frequency_hz or _rad_s, not both")
+                wn = (
+                    2 * math.pi * p.positive("natural_frequency_hz", 1e4)
+                    if hz is not None
+                    else p.positive("natural_frequency_rad_s", 1e5)
+                    if rad is not None
+                    else None
+                )
+                loops[plant] = LoopDesign(p.positive("zeta", 10.0), wn)
+            return cls(s.positive("integrator_pole_ratio", 100.0), loops)
+
+        return cfg.read(cls.SECTION, build)
 
     def loop(self, spec: PlantSpec) -> LoopDesign:
         if spec.name not in self.loops:

@@ -27,10 +27,7 @@ class SouthwardSettings:
     @classmethod
     @cache
     def defaults(cls) -> SouthwardSettings:
-        s = cfg.section(cls.SECTION)
-        out = cls(s.positive("static_friction_margin", 10.0))
-        s.done()
-        return out
+        return cfg.read(cls.SECTION, lambda s: cls(s.positive("static_friction_margin", 10.0)))
 
 
 @dataclass(frozen=True)
@@ -46,14 +43,14 @@ class RDFCSettings:
     @classmethod
     @cache
     def defaults(cls) -> RDFCSettings:
-        s = cfg.section(cls.SECTION)
-        out = cls(
-            s.positive("static_friction_margin", 10.0),
-            s.positive("delta_deg", 90.0),
-            s.choice("eq12b_reading", EQ12B_READINGS),
+        return cfg.read(
+            cls.SECTION,
+            lambda s: cls(
+                s.positive("static_friction_margin", 10.0),
+                s.positive("delta_deg", 90.0),
+                s.choice("eq12b_reading", EQ12B_READINGS),
+            ),
         )
-        s.done()
-        return out
 
 
 def static_bounds(ctx: EpisodeContext) -> tuple[float, float]:

@@ -43,17 +43,17 @@ class StateFeedbackSettings:
     @classmethod
     @cache
     def defaults(cls) -> StateFeedbackSettings:
-        s = cfg.section(cls.SECTION)
-        out = cls(
-            s.positive("w_cl", 1e4),
-            s.positive("zeta", 10.0),
-            s.positive("alpha", 100.0),
-            s.positive("u_max_v", 1e3),
-            s.positive("eps_v", 10.0),
-            s.positive("continuous_max_period_s", 1.0),
+        return cfg.read(
+            cls.SECTION,
+            lambda s: cls(
+                s.positive("w_cl", 1e4),
+                s.positive("zeta", 10.0),
+                s.positive("alpha", 100.0),
+                s.positive("u_max_v", 1e3),
+                s.positive("eps_v", 10.0),
+                s.positive("continuous_max_period_s", 1.0),
+            ),
         )
-        s.done()
-        return out
 
 
 def wallenborg_poles(w: float, zeta: float):

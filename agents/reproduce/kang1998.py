@@ -27,8 +27,8 @@ def _deg(x: float) -> float:
 
 
 def plant_rows(bounds: dict[str, float]) -> Iterator[dict]:
-    doc = plant_spec("kang_robot").document
     spec = plant_spec("kang_robot")
+    doc = spec.document
     # printed to 0.01 deg; K_p is the mean of the two printed bounds' implied values -> 0.05 deg
     yield row(
         "kang.theta_H_deg",

@@ -106,7 +106,7 @@ class EpisodeParams:
     def draw_values(cls, spec: PlantSpec, seed: int) -> dict[str, Any]:
         """One value per randomization key of the preset (per friction joint for the friction keys), each
         from its own named stream of the seed (envs/sampler.py)."""
-        nf = sum(j.friction is not None for j in spec.joints)
+        nf = len(friction_joints(spec))
         out: dict[str, Any] = {}
         for key, (lo, hi) in spec.randomization.items():
             rng = stream(seed, key)
