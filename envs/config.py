@@ -11,7 +11,7 @@ from __future__ import annotations
 import copy
 import math
 import re
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -200,12 +200,17 @@ class Node:
             self._children[key] = Node(value if value is not None else {}, self.source, f"{self.path}{key}.")
         return self._children[key]
 
-    def _checked(self, fn, key: str, *args: Any, default: Any = ..., **kw: Any) -> Any:
-        value = self[key] if default is ... else self.get(key, default)
+    def check(self, fn: Callable[..., Any], value: Any, field: str, *args: Any, **kw: Any) -> Any:
+        """fn(value, field, *args) (a checker such as number or interval), naming this file on error;
+        for values that are not a key of this section, such as list elements."""
         try:
-            return fn(value, self.field(key), *args, **kw)
+            return fn(value, field, *args, **kw)
         except ConfigError as e:
             raise ConfigError(e.field, e.message, self.source) from None
+
+    def _checked(self, fn, key: str, *args: Any, default: Any = ..., **kw: Any) -> Any:
+        value = self[key] if default is ... else self.get(key, default)
+        return self.check(fn, value, self.field(key), *args, **kw)
 
     def number(self, key: str, low: float = -math.inf, high: float = math.inf, **kw: Any) -> float:
         return self._checked(number, key, low, high, **kw)

@@ -1,9 +1,17 @@
 """Scenarios (configs/scenarios/*.yaml): plant preset, friction model, sampling, reference, initial-state
-distribution, randomisation, episode length and reward weights, loaded and checked into a Scenario."""
+distribution, randomisation, episode length and reward weights, loaded and checked into a Scenario.
+
+Every scenario file extends configs/scenarios/_defaults.yaml, or another scenario named by `extends:`,
+and gives only what differs. A `reference` with another `type` replaces the inherited one whole (each
+type has its own keys), in a file and in overrides alike. Every key is read through config.Node: unknown
+and missing keys, wrong types and out-of-range values are errors naming the file and the field.
+"""
 
 from __future__ import annotations
 
+import copy
 import itertools
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -11,17 +19,22 @@ from typing import Any
 
 import numpy as np
 
-from .config import ConfigError, configs_dir, interval, load_yaml, merge, nonneg, number, positive
-from .plants import PlantSpec, plant_spec
+from .config import ConfigError, Node, interval, load_yaml, merge, number, preset_names, preset_path
+from .friction import FRICTION_MODELS
+from .plants import PlantSpec, plant_names, plant_spec
 from .plants.mjcf import friction_joints
 from .step import ObservationLayout, observation_layout
 
 REFERENCE_TYPES = ("constant", "steps", "sine", "triangle")
+DEFAULTS = "_defaults"  # configs/scenarios/_defaults.yaml, which every scenario extends
+MAX_EPISODE_S = 3600.0  # one hour of simulated time
+MAX_EPISODE_STEPS = 1_000_000  # the per-episode logs hold 3 floats per step and simulation
+MAX_REWARD_WEIGHT = 1e6  # keeps every reward, and the diverged-step reward, finite
 
 
 def scenario_names() -> list[str]:
-    """Names of the scenarios under configs/scenarios/."""
-    return sorted(p.stem for p in (configs_dir() / "scenarios").glob("*.yaml"))
+    """Names of the scenarios under configs/scenarios/ (not the shared defaults file)."""
+    return preset_names("scenarios")
 
 
 @dataclass(frozen=True)
@@ -91,102 +104,141 @@ class Scenario:
         return "regulation" if self.reference.type == "constant" else "tracking"
 
 
-def _reference(r: dict) -> Reference:
-    kind = r.get("type")
-    if kind not in REFERENCE_TYPES:
-        raise ConfigError("reference.type", f"{kind!r} not in {list(REFERENCE_TYPES)}")
+def _reference(r: Node) -> tuple[Reference, int]:
+    """The reference generator and its preview length (steps)."""
+    kind = r.choice("type", REFERENCE_TYPES)
+    preview = r.integer("preview_steps", 0, 1000, default=0)
     if kind == "constant":
-        return Reference("constant", value=number(r.get("value", 0.0), "reference.value"))
+        return Reference("constant", value=r.number("value", default=0.0)), preview
     if kind == "steps":
-        sched = r.get("schedule")
+        sched = r["schedule"]
         if not isinstance(sched, list) or not sched:
-            raise ConfigError("reference.schedule", "expected a non-empty list of [t_start, value] pairs")
+            raise r.error("schedule", "expected a non-empty list of [t_start, value] pairs")
         pairs = []
         for i, p in enumerate(sched):
+            f = r.field(f"schedule[{i}]")
             if not isinstance(p, list | tuple) or len(p) != 2:
-                raise ConfigError(f"reference.schedule[{i}]", f"expected [t_start, value], got {p!r}")
-            pairs.append(
-                (
-                    number(p[0], f"reference.schedule[{i}][0]", 0.0),
-                    number(p[1], f"reference.schedule[{i}][1]"),
-                )
-            )
+                raise ConfigError(f, f"expected [t_start, value], got {p!r}", r.source)
+            pairs.append((r.check(number, p[0], f"{f}[0]", 0.0), r.check(number, p[1], f"{f}[1]")))
         if any(b[0] <= a[0] for a, b in itertools.pairwise(pairs)):
-            raise ConfigError("reference.schedule", "start times must increase")
-        return Reference("steps", schedule=tuple(pairs))
-    return Reference(
+            raise r.error("schedule", "start times must increase")
+        return Reference("steps", schedule=tuple(pairs)), preview
+    ref = Reference(
         kind,
-        amplitude=nonneg(r.get("amplitude", 0.0), "reference.amplitude"),
-        frequency_hz=positive(r.get("frequency_hz"), "reference.frequency_hz"),
-        offset=number(r.get("offset", 0.0), "reference.offset"),
-        phase_rad=number(r.get("phase_rad", 0.0), "reference.phase_rad"),
+        amplitude=r.nonneg("amplitude", default=0.0),
+        frequency_hz=r.positive("frequency_hz"),
+        offset=r.number("offset", default=0.0),
+        phase_rad=r.number("phase_rad", default=0.0),
     )
+    return ref, preview
 
 
-def _deep_update(base: dict, extra: dict) -> dict:
-    """base updated recursively with extra (no key checks: the plant preset checks them)."""
+def _deep_update(base: dict, extra: Mapping) -> dict:
+    """base updated recursively with extra (no key checks: the reader checks them)."""
     for k, v in extra.items():
-        base[k] = _deep_update(dict(base.get(k) or {}), v) if isinstance(v, dict) else v
+        base[k] = _deep_update(dict(base.get(k) or {}), v) if isinstance(v, Mapping) else v
     return base
 
 
-def _ranges(value: Any, nv: int, field_: str) -> np.ndarray:
+def _new_reference(base: dict, extra: Mapping) -> dict | None:
+    """extra's reference if it changes the reference type (it then replaces base's whole), else None."""
+    ref = extra.get("reference")
+    if (
+        isinstance(ref, Mapping)
+        and "type" in ref
+        and ref["type"] != (base.get("reference") or {}).get("type")
+    ):
+        return copy.deepcopy(dict(ref))
+    return None
+
+
+def scenario_config(name_or_path: str | Path, _chain: tuple[str, ...] = ()) -> dict[str, Any]:
+    """The scenario's YAML over what it extends (another scenario, or the defaults file)."""
+    path = preset_path(name_or_path, "scenarios")
+    data = load_yaml(path)
+    parent = data.pop("extends", None if path.stem == DEFAULTS else DEFAULTS)
+    if parent is None:
+        return data
+    if not isinstance(parent, str) or parent in (*_chain, path.stem):
+        raise ConfigError("extends", f"expected another scenario's name, not a cycle: {parent!r}", path.name)
+    base = scenario_config(parent, (*_chain, path.stem))
+    ref = _new_reference(base, data)
+    out = _deep_update(base, data)
+    if ref is not None:
+        out["reference"] = ref
+    return out
+
+
+def _ranges(init: Node, key: str, nv: int) -> np.ndarray:
+    """(nv, 2) [low, high] per joint of initial_state.<key>."""
+    value = init[key]
     if not isinstance(value, list) or len(value) != nv:
-        raise ConfigError(field_, f"expected {nv} [low, high] pairs (one per joint), got {value!r}")
-    return np.array([interval(v, f"{field_}[{i}]") for i, v in enumerate(value)])
+        raise init.error(key, f"expected {nv} [low, high] pairs (one per joint), got {value!r}")
+    return np.array([init.check(interval, v, f"{init.field(key)}[{i}]") for i, v in enumerate(value)])
 
 
 def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwargs: Any) -> Scenario:
-    """Load a scenario by name or path; `overrides` deep-merges YAML keys, kwargs set top-level keys
-    (e.g. control_period_s=0.04, randomize=True, episode_s=5)."""
-    cfg = load_yaml(name_or_path, kind="scenarios")
+    """Load a scenario by name or path; `overrides` deep-merges YAML keys (a reference with a new type
+    replaces the scenario's), kwargs set top-level keys (e.g. control_period_s=0.04, randomize=True,
+    episode_s=5); None values are ignored."""
+    path = preset_path(name_or_path, "scenarios")
+    src = path.name
+    cfg = scenario_config(path)
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise ConfigError("overrides", f"expected a mapping of scenario keys, got {overrides!r}", src)
     overrides = dict(overrides or {})
     # plant overrides are checked against the plant preset (plant_spec), not the scenario's own dict
     plant_extra = overrides.pop("plant_overrides", None) or {}
-    cfg = merge(cfg, overrides)
-    cfg["plant_overrides"] = _deep_update(dict(cfg.get("plant_overrides") or {}), plant_extra)
-    cfg = merge(cfg, {k: v for k, v in kwargs.items() if v is not None})
-    name = Path(str(name_or_path)).stem
-    period = positive(cfg["control_period_s"], "control_period_s")
-    plant_ov = dict(cfg.get("plant_overrides") or {})
-    plant_ov["sampling"] = {**plant_ov.get("sampling", {}), "control_period_s": period}
-    spec = plant_spec(cfg["plant"], plant_ov, cfg.get("friction_model", "lugre"))
-    task = cfg["task"]
-    names = [s.name for s in spec.sensors]
-    if task["tracked_sensor"] not in names:
-        raise ConfigError("task.tracked_sensor", f"{task['tracked_sensor']!r} not in {names}")
+    if not isinstance(plant_extra, Mapping):
+        raise ConfigError("plant_overrides", f"expected a mapping of plant keys, got {plant_extra!r}", src)
+    ref = _new_reference(cfg, overrides)
+    if ref is not None:
+        cfg["reference"] = ref
+        overrides.pop("reference")
+    cfg = merge(cfg, overrides, source=src)
+    cfg = merge(cfg, {k: v for k, v in kwargs.items() if v is not None}, source=src)
+    c = Node(cfg, src)
+    plant_ov = c["plant_overrides"]
+    if not isinstance(plant_ov, Mapping):
+        raise c.error("plant_overrides", f"expected a mapping of plant keys, got {plant_ov!r}")
+    plant_ov = _deep_update(copy.deepcopy(dict(plant_ov)), plant_extra)
+    if c.get("control_period_s") is not None:  # else the plant preset's own period
+        period = c.positive("control_period_s", 1.0)
+        plant_ov["sampling"] = {**plant_ov.get("sampling", {}), "control_period_s": period}
+    spec = plant_spec(c.choice("plant", plant_names()), plant_ov, c.choice("friction_model", FRICTION_MODELS))
+    period = spec.control_period
+    task = c.section("task")
+    names = [x.name for x in spec.sensors]
+    tracked = names.index(task.choice("tracked_sensor", names))
     unit_key = "action_scale_nm" if spec.command_unit == "N·m" else "action_scale_v"
-    if unit_key not in task:
-        raise ConfigError(f"task.{unit_key}", f"required for a plant commanded in {spec.command_unit}")
-    action_scale = number(task[unit_key], f"task.{unit_key}", 0.0, spec.command_limit, low_open=True)
-    episode = positive(cfg["episode_s"], "episode_s")
+    action_scale = task.number(unit_key, 0.0, spec.command_limit, low_open=True)
+    episode = c.positive("episode_s", MAX_EPISODE_S)
     steps = round(episode / period)
     if abs(steps * period - episode) > 1e-9 * episode:
-        raise ConfigError("episode_s", f"{episode} must be a whole number of control periods ({period})")
-    randomize = cfg.get("randomize", False)
-    if not isinstance(randomize, bool):
-        raise ConfigError("randomize", f"expected true or false, got {randomize!r}")
-    ref = cfg["reference"]
-    obs = cfg.get("observation", {})
-    weights = {
-        k: nonneg(cfg["reward"].get(k, 0.0), f"reward.{k}") for k in ("tracking", "effort", "smoothness")
-    }
-    nv = len(spec.joints)
-    n_init = 1 if spec.belts else nv
-    return Scenario(
-        name=name,
+        raise c.error("episode_s", f"{episode} must be a whole number of control periods ({period})")
+    if steps > MAX_EPISODE_STEPS:
+        raise c.error("episode_s", f"{steps} control periods > {MAX_EPISODE_STEPS}")
+    reference, preview = _reference(c.section("reference"))
+    init = c.section("initial_state")
+    n_init = 1 if spec.belts else len(spec.joints)
+    obs, rw = c.section("observation"), c.section("reward")
+    scenario = Scenario(
+        name=path.stem,
         spec=spec,
         episode_steps=steps,
-        randomize=randomize,
-        tracked_sensor=names.index(task["tracked_sensor"]),
-        output_scale=positive(task["output_scale"], "task.output_scale"),
+        randomize=c.boolean("randomize"),
+        tracked_sensor=tracked,
+        output_scale=task.positive("output_scale", 1e6),
         action_scale=action_scale,
-        settle_band=positive(task["settle_band"], "task.settle_band"),
-        reference=_reference(ref),
-        preview_steps=int(number(ref.get("preview_steps", 0), "reference.preview_steps", 0, 1000)),
-        qpos_range=_ranges(cfg["initial_state"]["qpos"], n_init, "initial_state.qpos"),
-        qvel_range=_ranges(cfg["initial_state"]["qvel"], n_init, "initial_state.qvel"),
-        history=int(number(obs.get("history", 0), "observation.history", 0, 1000)),
-        privileged=bool(obs.get("privileged", False)),
-        reward_weights=weights,
+        settle_band=task.positive("settle_band", 1e6),
+        reference=reference,
+        preview_steps=preview,
+        qpos_range=_ranges(init, "qpos", n_init),
+        qvel_range=_ranges(init, "qvel", n_init),
+        history=obs.integer("history", 0, 1000),
+        privileged=obs.boolean("privileged"),
+        reward_weights={k: rw.nonneg(k, MAX_REWARD_WEIGHT) for k in ("tracking", "effort", "smoothness")},
     )
+    c.get("description")
+    c.done()
+    return scenario

@@ -80,7 +80,7 @@ class ServoEnv(gym.Env, EzPickle):
             render_mode=render_mode,
         )
         self.scenario: Scenario = load_scenario(
-            scenario or self.default_scenario,
+            self.default_scenario if scenario is None else scenario,
             overrides,
             randomize=randomize,
             control_period_s=control_period_s,
