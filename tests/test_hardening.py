@@ -209,3 +209,28 @@ def test_scenarios_extend_the_defaults_and_each_other():
     assert (fast.control_period, slow.control_period) == (0.001, 0.04)  # 0.04: the plant preset's period
     assert fast.reference == slow.reference and fast.reference.type == "constant"
     assert slow.reward_weights == {"tracking": 1.0, "effort": 0.001, "smoothness": 0.01}  # _defaults.yaml
+
+
+def test_vector_env_reports_divergence_and_writes_no_mujoco_log(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo would write MUJOCO_LOG.TXT here
+    venv = ServoVectorEnv("kang_regulation", 2, overrides={"initial_state": {"qpos": [[2e10, 2e10]]}})
+    venv.reset(seed=0)
+    _, reward, term, _, info = venv.step(np.zeros(2))
+    assert term.all() and info["diverged"].all() and np.isfinite(reward).all()
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+@pytest.mark.parametrize("bad", [np.zeros((2, 2)), np.zeros(3), "ab", np.array([1j, 0])])
+def test_vector_env_rejects_anything_but_one_real_per_env(bad):
+    venv = ServoVectorEnv("kang_regulation", 2)
+    venv.reset(seed=0)
+    with pytest.raises(ValueError, match="action"):
+        venv.step(bad)
+
+
+def test_sb3_adapter_step_before_reset_is_an_error():
+    from frictiongym.envs.vector import make_sb3_vec_env
+
+    venv = make_sb3_vec_env("kang_regulation", 2)
+    with pytest.raises(RuntimeError, match="reset"):
+        venv.step(np.zeros((2, 1)))
