@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict
+from operator import attrgetter
 
 import mujoco
 import numpy as np
@@ -34,6 +35,7 @@ from .step import (
 
 # MuJoCo warnings after which it resets the simulation or ignores the command: each ends the episode
 # as diverged (MuJoCo would otherwise carry on silently from rest).
+_NUMBER = attrgetter("number")  # a warning counter's count
 DIVERGENCE_WARNINGS = np.array(
     [
         int(getattr(mujoco.mjtWarning, w))
@@ -283,7 +285,7 @@ class ServoCore:
         b = self.backend
         b.data.ctrl[self.idx.drive_ctrl] = command
         mujoco.mj_step(b.model, b.data, self._substeps)
-        diverged = bool(self.diverged[0]) or any(w.number > 0 for w in self._warnings)
+        diverged = bool(self.diverged[0]) or max(map(_NUMBER, self._warnings)) > 0
         self.diverged[0] = diverged
         k = int(self.k[0]) + 1
         self.k[0] = k
