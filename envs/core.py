@@ -292,7 +292,7 @@ class ServoCore:
         a_prev = float(self.prev_action[0])
         self.prev_action[0] = a
         # the observation, as _observe
-        qpos, qvel = b.data.qpos, b.data.qvel
+        qpos, qvel = b.data.qpos.tolist(), b.data.qvel.tolist()  # Python floats: cheaper arithmetic
         noise = (
             self.sensors.noise([self.noise_rng[0]], self.noise_scale[:1])[0].tolist()
             if self.any_noise
