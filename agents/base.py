@@ -97,3 +97,16 @@ def drive_friction_reason(scenario: Scenario) -> str | None:
     if scenario.spec.drive_friction is None:
         return "needs friction on the driven joint (friction_model is none or viscous)"
     return None
+
+
+class Zero(Controller):
+    """The do-nothing reference: always commands 0. Every table shows it, and the normalised score of an
+    episode, s = 1 - m / m_Zero, measures a controller against it on the same episode."""
+
+    name: ClassVar[str] = "Zero"
+
+    def reset(self, ctx: EpisodeContext) -> None:
+        self.action = np.zeros(1, dtype=np.float32)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        return self.action

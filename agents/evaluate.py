@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
-from frictiongym.envs.scenario import load_scenario
+from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.suites import Episode
 
@@ -37,20 +38,49 @@ class EpisodeResult:
         }
 
 
+class EnvCache:
+    """Envs by (scenario, randomize, the controller's hardware, env arguments): an evaluation builds each
+    once and resets it per episode (every random quantity comes from the episode's seed)."""
+
+    def __init__(self) -> None:
+        self._envs: dict[str, ServoEnv] = {}
+        self._scenarios: dict[str, Scenario] = {}
+
+    def scenario(self, episode: Episode, **env_kwargs: Any) -> Scenario:
+        """The scenario as the user configured it (without any controller's hardware)."""
+        key = json.dumps([episode.scenario, episode.randomize, env_kwargs], sort_keys=True, default=str)
+        if key not in self._scenarios:
+            user = env_kwargs.get("overrides")
+            kw = {k: v for k, v in env_kwargs.items() if k != "overrides"}
+            self._scenarios[key] = load_scenario(episode.scenario, user, randomize=episode.randomize, **kw)
+        return self._scenarios[key]
+
+    def env(self, controller: Controller, episode: Episode, **env_kwargs: Any) -> ServoEnv:
+        """The env for this controller on this episode's scenario, with the hardware it brings."""
+        hw = controller.plant_overrides(self.scenario(episode, **env_kwargs))
+        key = json.dumps([episode.scenario, episode.randomize, hw, env_kwargs], sort_keys=True, default=str)
+        if key not in self._envs:
+            kw = dict(env_kwargs)
+            user = dict(kw.pop("overrides", None) or {})
+            overrides = {**user, "plant_overrides": {**user.get("plant_overrides", {}), **hw}} if hw else user
+            self._envs[key] = ServoEnv(
+                episode.scenario, randomize=episode.randomize, overrides=overrides or None, **kw
+            )
+        return self._envs[key]
+
+
 def run_episode(
     controller: Controller,
     episode: Episode,
     keep_log: bool = False,
     knowledge: dict | None = None,
+    envs: EnvCache | None = None,
     **env_kwargs: Any,
 ) -> EpisodeResult:
     """Run one suite episode. The controller's own hardware (plant_overrides) is added to the scenario;
-    everything random comes from the episode's seed, so every controller sees the same episode."""
-    user = dict(env_kwargs.pop("overrides", None) or {})
-    base = load_scenario(episode.scenario, user, randomize=episode.randomize, **env_kwargs)
-    hw = controller.plant_overrides(base)
-    overrides = {**user, "plant_overrides": {**user.get("plant_overrides", {}), **hw}} if hw else user
-    env = ServoEnv(episode.scenario, randomize=episode.randomize, overrides=overrides or None, **env_kwargs)
+    everything random comes from the episode's seed, so every controller sees the same episode. With
+    `envs`, the env is taken from (and kept in) that cache."""
+    env = (envs or EnvCache()).env(controller, episode, **env_kwargs)
     sc = env.scenario  # its spec holds the nominal (document) plant; the episode's draw is hidden
     know = {**knowledge_defaults(), **(knowledge or {})}
     obs, _ = env.reset(seed=episode.seed)
@@ -79,10 +109,10 @@ def evaluate(
     progress: bool = True,
     **kw: Any,
 ) -> list[EpisodeResult]:
-    """Every applicable controller on every episode, in order, with a progress bar."""
-    scenarios = {name: load_scenario(name) for name in {e.scenario for e in episodes}}
-    jobs = [(c, e) for e in episodes for c in controllers if c.applies_to(scenarios[e.scenario])]
+    """Every applicable controller on every episode, in order, in this process, with a progress bar."""
+    envs = EnvCache()
+    jobs = [(c, e) for e in episodes for c in controllers if c.applies_to(envs.scenario(e))]
     return [
-        run_episode(c, e, keep_log=keep_logs, **kw)
+        run_episode(c, e, keep_log=keep_logs, envs=envs, **kw)
         for c, e in tqdm(jobs, desc="episodes", unit="ep", disable=not progress)
     ]

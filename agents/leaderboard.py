@@ -4,31 +4,21 @@ mean and 95 % bootstrap intervals of the main metrics; CSV, markdown and PNG plo
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections import defaultdict
-from collections.abc import Callable
-from functools import partial
+from dataclasses import asdict
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from frictiongym.envs.suites import load_suite
+from frictiongym.envs.metrics import METRIC_NAMES
+from frictiongym.envs.suites import Episode, load_suite
 
-from .base import Controller
-from .classical import PD, PID, RDFC, CoulombViscousFF, LuGreObserver, Southward, StateFeedback
-from .evaluate import EpisodeResult, evaluate
+from . import engine, registry
+from .evaluate import EnvCache, EpisodeResult, run_episode
 
-CONTROLLERS: dict[str, Callable[[], Controller]] = {
-    "PD": PD,
-    "PID": PID,
-    "Southward": Southward,
-    "RDFC": RDFC,
-    "SF": StateFeedback,
-    "SF+relay": partial(StateFeedback, "relay"),
-    "SF+highgain": partial(StateFeedback, "highgain"),
-    "LuGreObserver": LuGreObserver,
-    "CoulombViscousFF": CoulombViscousFF,
-}
 MAIN_METRICS = ("iae", "final_error", "limit_cycle_amp", "reversal_peak_error", "effort_rms")
 N_BOOT = 2000
 
@@ -94,15 +84,49 @@ def markdown(table: dict[str, list[dict]], suite: str) -> str:
     return "\n".join(lines)
 
 
-def write_csv(results: list[EpisodeResult], path: Path) -> None:
-    rows = [r.row() for r in results]
-    with open(path, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        w.writerows(rows)
+def _atomic_text(path: Path, text: str) -> None:
+    """Write a whole text file atomically (temporary file, then rename): never a half-written file."""
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
 
 
-def plots(results: list[EpisodeResult], table: dict[str, list[dict]], out: Path) -> list[str]:
+def write_table_csv(table: dict[str, list[dict]], path: Path) -> None:
+    """The tables: one row per (scenario, controller), mean and 95 % interval of each main metric."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(
+        ["scenario", "controller", "episodes", "diverged"]
+        + [f"{m}_{k}" for m in MAIN_METRICS for k in ("mean", "lo", "hi")]
+    )
+    for sc, rows in table.items():
+        for r in rows:
+            w.writerow(
+                [
+                    sc,
+                    r["controller"],
+                    r["episodes"],
+                    r["diverged"],
+                    *(repr(v) for m in MAIN_METRICS for v in r[m]),
+                ]
+            )
+    _atomic_text(path, buf.getvalue())
+
+
+def _save_png(fig, path: Path) -> str:
+    """Save a figure atomically (temporary file, then rename) and close it; returns the file name."""
+    import matplotlib.pyplot as plt
+
+    tmp = path.with_name(f".{path.name}.tmp")
+    fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+    tmp.replace(path)
+    return path.name
+
+
+def plots(
+    results: list[EpisodeResult], table: dict[str, list[dict]], out: Path, randomize: dict[str, bool]
+) -> list[str]:
     """A bar chart per metric (controllers per scenario, 95 % intervals) and, per scenario, the time
     responses of its best and worst episodes (by IAE)."""
     import matplotlib
@@ -135,15 +159,11 @@ def plots(results: list[EpisodeResult], table: dict[str, list[dict]], out: Path)
         ax.set(ylabel=m, title=f"{m} (mean, 95 % bootstrap interval)")
         ax.legend(fontsize=8)
         fig.tight_layout()
-        fig.savefig(out / f"bar_{m}.png", dpi=110)
-        plt.close(fig)
-        names.append(f"bar_{m}.png")
+        names.append(_save_png(fig, out / f"bar_{m}.png"))
     for sc in scenarios:
-        rs = [r for r in results if r.scenario == sc and r.log is not None]
-        if not rs:
-            continue
+        rs = [r for r in results if r.scenario == sc]
         iae = [r.metrics["iae"] for r in rs]
-        best, worst = rs[int(np.nanargmin(iae))], rs[int(np.nanargmax(iae))]
+        best, worst = with_logs([rs[int(np.nanargmin(iae))], rs[int(np.nanargmax(iae))]], randomize[sc])
         fig, ax = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
         for r, style in ((best, "-"), (worst, "--")):
             g = r.log
@@ -155,10 +175,29 @@ def plots(results: list[EpisodeResult], table: dict[str, list[dict]], out: Path)
         ax[0].legend(fontsize=7)
         ax[1].set(xlabel="t (s)", ylabel="command")
         fig.tight_layout()
-        fig.savefig(out / f"response_{sc}.png", dpi=110)
-        plt.close(fig)
-        names.append(f"response_{sc}.png")
+        names.append(_save_png(fig, out / f"response_{sc}.png"))
     return names
+
+
+def result_of(row: dict[str, Any]) -> EpisodeResult:
+    """An EpisodeResult from an engine row (native values, or the strings read back from episodes.csv)."""
+    return EpisodeResult(
+        controller=str(row["controller"]),
+        scenario=str(row["scenario"]),
+        seed=int(row["seed"]),
+        metrics={m: float(row[m]) for m in METRIC_NAMES},
+        episode_return=float(row["return"]),
+        diverged=row["diverged"] in (True, "True"),
+    )
+
+
+def with_logs(picked: list[EpisodeResult], randomize: bool) -> list[EpisodeResult]:
+    """The same episodes re-run with their time logs (deterministic: the same seeds give the same runs)."""
+    envs = EnvCache()
+    return [
+        run_episode(registry.make(r.controller), Episode(r.scenario, r.seed, randomize), True, envs=envs)
+        for r in picked
+    ]
 
 
 def run(
@@ -166,21 +205,35 @@ def run(
     controllers: list[str] | None = None,
     out: Path | None = None,
     progress: bool = True,
+    workers: int = 1,
+    episodes: list[Episode] | None = None,
 ) -> tuple[list[EpisodeResult], dict[str, list[dict]]]:
-    """Evaluate, summarize, and (with out) write leaderboard.md, leaderboard.csv and PNG plots."""
-    names = controllers or list(CONTROLLERS)
-    unknown = [n for n in names if n not in CONTROLLERS]
+    """Evaluate (the suite, or the given episodes) and summarize. With out: results go to out/episodes.csv
+    incrementally (a rerun resumes), then leaderboard.md, leaderboard.csv (the tables) and PNG plots."""
+    available = registry.available()
+    names = controllers or list(available)
+    unknown = [n for n in names if n not in available]
     if unknown:
-        raise ValueError(f"unknown controllers {unknown}; available: {list(CONTROLLERS)}")
-    results = evaluate(
-        [CONTROLLERS[n]() for n in names], load_suite(suite), keep_logs=out is not None, progress=progress
-    )
+        raise ValueError(f"unknown controllers {unknown}; available: {list(available)}")
+    episodes = episodes if episodes is not None else load_suite(suite)
+    if out is None:
+        jobs, skipped = engine.plan(names, episodes)
+        rows: list[dict[str, Any]] = []
+        engine.run_jobs(jobs, workers, rows.extend, progress)
+        rank = {j.key(): i for i, j in enumerate(jobs)}
+        rows.sort(key=lambda r: rank[(r["controller"], r["scenario"], str(r["seed"]), str(r["randomize"]))])
+    else:
+        options = {"episodes": [asdict(e) for e in episodes], "controllers": names}
+        rows, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress)
+    for name, scenario, reason in skipped:
+        if progress:
+            print(f"skipped {name} on {scenario}: {reason}")
+    results = [result_of(r) for r in rows]
     table = summarize(results)
     if out is not None:
-        out.mkdir(parents=True, exist_ok=True)
-        write_csv(results, out / "leaderboard.csv")
-        figs = plots(results, table, out)
-        (out / "leaderboard.md").write_text(
-            markdown(table, suite) + "\n" + "\n".join(f"![{f}]({f})" for f in figs) + "\n"
+        write_table_csv(table, out / "leaderboard.csv")
+        figs = plots(results, table, out, randomize={e.scenario: e.randomize for e in episodes})
+        _atomic_text(
+            out / "leaderboard.md", markdown(table, suite) + "\n" + "".join(f"![{f}]({f})\n" for f in figs)
         )
     return results, table

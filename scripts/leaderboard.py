@@ -1,34 +1,79 @@
 """Run every applicable controller on the identical episodes of a suite and rank them.
 
-    python scripts/leaderboard.py [--suite default] [--controllers PD PID RDFC] [--out out/leaderboard]
+    python scripts/leaderboard.py [--suite default | --scenarios A B --seeds 5000-5049 [--randomize]]
+                                  [--controllers PD PID ...] [--workers N] [--out out/leaderboard]
 
-Prints one table per scenario (mean and 95 % bootstrap interval of the main metrics, sorted by IAE) and
-writes leaderboard.md, leaderboard.csv and PNG plots to --out.
+Episodes run as jobs on N worker processes (default: every core) and land in OUT/episodes.csv as they
+finish; rerunning with the same options and --out resumes, and other options into the same --out are
+refused. Then prints one table per scenario and writes leaderboard.md, leaderboard.csv and PNG plots.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+import sys
 import time
 from pathlib import Path
 
-from frictiongym.agents import leaderboard
-from frictiongym.envs.suites import suite_names
+from frictiongym.agents import leaderboard, registry
+from frictiongym.agents.engine import RunMismatch
+from frictiongym.envs.scenario import scenario_names
+from frictiongym.envs.suites import Episode, suite_names
 
 
-def main(argv: list[str] | None = None) -> None:
+def seed_range(text: str) -> list[int]:
+    """'5000-5049' (inclusive) or '7' -> the seeds."""
+    lo, _, hi = text.partition("-")
+    try:
+        seeds = list(range(int(lo), int(hi or lo) + 1))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected A-B or A (non-negative integers), got {text!r}") from None
+    if not seeds or seeds[0] < 0:
+        raise argparse.ArgumentTypeError(f"expected A <= B, both >= 0, got {text!r}")
+    return seeds
+
+
+def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--suite", default="default", choices=suite_names())
-    ap.add_argument("--controllers", nargs="*", choices=list(leaderboard.CONTROLLERS), help="default: all")
+    src = ap.add_mutually_exclusive_group()
+    src.add_argument(
+        "--suite", choices=suite_names(), help="a suite of configs/suites.yaml (default: default)"
+    )
+    src.add_argument(
+        "--scenarios", nargs="+", choices=scenario_names(), help="an inline suite (with --seeds)"
+    )
+    ap.add_argument("--seeds", type=seed_range, help="seeds of the inline suite, e.g. 5000-5049")
+    ap.add_argument("--randomize", action="store_true", help="randomise the inline suite's episodes")
+    ap.add_argument("--controllers", nargs="+", choices=list(registry.available()), help="default: all")
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     ap.add_argument("--out", type=Path, default=Path("out/leaderboard"))
     args = ap.parse_args(argv)
-    t0 = time.perf_counter()
-    _, table = leaderboard.run(args.suite, args.controllers, args.out)
-    print(leaderboard.markdown(table, args.suite))
-    print(
-        f"wrote {args.out / 'leaderboard.md'}, leaderboard.csv and plots in {time.perf_counter() - t0:.0f} s"
+    if args.scenarios and not args.seeds:
+        ap.error("--scenarios needs --seeds")
+    if args.seeds and not args.scenarios:
+        ap.error("--seeds goes with --scenarios (a suite has its own seeds)")
+    if args.workers < 1:
+        ap.error("--workers must be >= 1")
+    suite = args.suite or ("inline" if args.scenarios else "default")
+    episodes = (
+        [Episode(sc, seed, args.randomize) for sc in args.scenarios for seed in args.seeds]
+        if args.scenarios
+        else None
     )
+    t0 = time.perf_counter()
+    try:
+        _, table = leaderboard.run(suite, args.controllers, args.out, workers=args.workers, episodes=episodes)
+    except RunMismatch as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(leaderboard.markdown(table, suite))
+    print(
+        f"wrote {args.out / 'leaderboard.md'}, leaderboard.csv, episodes.csv and plots "
+        f"in {time.perf_counter() - t0:.0f} s ({args.workers} workers)"
+    )
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

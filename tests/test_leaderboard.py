@@ -56,6 +56,11 @@ def test_script_writes_markdown_csv_and_plots(tmp_path):
     assert "## kang_regulation" in proc.stdout
     rows = list(csv.DictReader((tmp_path / "leaderboard.csv").read_text().splitlines()))
     assert {r["controller"] for r in rows} == {"PD", "PID"}
+    episodes = list(csv.DictReader((tmp_path / "episodes.csv").read_text().splitlines()))
+    assert {(r["controller"], r["scenario"]) for r in episodes} >= {
+        ("PD", "kang_regulation"),
+        ("PID", "m220_regulation"),
+    }
     assert (tmp_path / "leaderboard.md").read_text().startswith("# frictiongym leaderboard")
     assert (tmp_path / "bar_iae.png").stat().st_size > 5000
     assert (tmp_path / "response_kang_regulation.png").stat().st_size > 5000

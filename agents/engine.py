@@ -1,0 +1,271 @@
+"""The evaluation engine: episodes are jobs (controller, scenario, seed, randomize), run serially or on a
+process pool, their rows written to DIR/episodes.csv as they finish.
+
+- A worker builds each controller once and each env once per (scenario, controller hardware), and resets
+  it per episode; every random quantity comes from the episode's seed, so a job's row is the same in any
+  worker, in any order: a parallel run equals a serial one bit for bit.
+- Rows are appended with one write and an fsync per finished chunk; on the next run with the same --out,
+  finished jobs are skipped and a torn last line (a killed writer) is dropped. When the run completes the
+  file is rewritten in canonical order (atomically: temporary file, then rename), so an interrupted and
+  resumed run ends with the same file as a clean one.
+- DIR/run.json records the run's options; a run with other options into the same DIR is refused.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import subprocess
+import sys
+from collections.abc import Callable, Iterable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass
+from importlib.metadata import PackageNotFoundError, version
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from frictiongym.envs.metrics import METRIC_NAMES
+from frictiongym.envs.suites import Episode
+
+from . import registry
+from .evaluate import EnvCache, run_episode
+
+CHUNK = 4  # episodes per task: small, so a killed run loses little and the pool stays balanced
+THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "MUJOCO_NUM_THREADS")
+KEY = ("controller", "scenario", "seed", "randomize")
+FIELDS = (
+    *KEY,
+    "return",
+    "diverged",
+    *METRIC_NAMES,
+    "controller_params",
+    "package_version",
+    "git_commit",
+)
+
+
+@dataclass(frozen=True)
+class Job:
+    controller: str
+    scenario: str
+    seed: int
+    randomize: bool
+
+    @property
+    def episode(self) -> Episode:
+        return Episode(self.scenario, self.seed, self.randomize)
+
+    def key(self) -> tuple[str, str, str, str]:
+        """The job's identity as it reads back from the CSV (all strings)."""
+        return (self.controller, self.scenario, str(self.seed), str(self.randomize))
+
+
+def plan(controllers: list[str], episodes: list[Episode]) -> tuple[list[Job], list[tuple[str, str, str]]]:
+    """The jobs (episode-major, controllers in the given order) and the skipped (controller, scenario,
+    reason) pairs of controllers not defined for a scenario."""
+    envs, made = EnvCache(), {name: registry.make(name) for name in controllers}
+    jobs, skipped, seen = [], [], set()
+    for e in episodes:
+        for name, c in made.items():
+            reason = c.why_not(envs.scenario(e))
+            if reason is None:
+                jobs.append(Job(name, e.scenario, e.seed, e.randomize))
+            elif (name, e.scenario) not in seen:
+                seen.add((name, e.scenario))
+                skipped.append((name, e.scenario, reason))
+    return jobs, skipped
+
+
+def provenance() -> dict[str, str]:
+    """Package version and git commit (if the code runs from a git checkout), for every row."""
+    try:
+        pkg = version("frictiongym")
+    except PackageNotFoundError:
+        pkg = "unknown"
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            cwd=Path(__file__).parent,
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        commit = ""
+    return {"package_version": pkg, "git_commit": commit}
+
+
+# ------------------------------------------------------------------------------------------- workers
+_CONTROLLERS: dict[str, Any] = {}
+_ENVS = EnvCache()
+
+
+def _init_worker() -> None:
+    """One thread per worker for BLAS, torch and MuJoCo (the pool is the parallelism)."""
+    if "torch" in sys.modules:
+        sys.modules["torch"].set_num_threads(1)
+
+
+def run_chunk(jobs: list[Job], prov: dict[str, str]) -> list[dict[str, Any]]:
+    """The rows of some jobs, in this process (controllers and envs cached per process)."""
+    rows = []
+    for job in jobs:
+        if job.controller not in _CONTROLLERS:
+            _CONTROLLERS[job.controller] = registry.make(job.controller)
+        c = _CONTROLLERS[job.controller]
+        r = run_episode(c, job.episode, envs=_ENVS)
+        rows.append(
+            {
+                **asdict(job),
+                "return": r.episode_return,
+                "diverged": r.diverged,
+                **r.metrics,
+                "controller_params": json.dumps(c.params(), sort_keys=True, default=_jsonable),
+                **prov,
+            }
+        )
+    return rows
+
+
+def _jsonable(x: Any) -> Any:
+    return x.tolist() if hasattr(x, "tolist") else str(x)
+
+
+def chunks(jobs: list[Job], size: int = CHUNK) -> list[list[Job]]:
+    """Consecutive jobs of the same (scenario, randomize, controller), at most `size` each."""
+    groups: dict[tuple, list[Job]] = {}
+    for j in jobs:
+        groups.setdefault((j.scenario, j.randomize, j.controller), []).append(j)
+    return [g[i : i + size] for g in groups.values() for i in range(0, len(g), size)]
+
+
+def run_jobs(
+    jobs: list[Job],
+    workers: int,
+    on_rows: Callable[[list[dict[str, Any]]], None],
+    progress: bool = True,
+) -> None:
+    """Run jobs (workers = 1: in this process) and hand each finished chunk's rows to on_rows."""
+    prov = provenance()
+    todo = chunks(jobs)
+    bar = tqdm(total=len(jobs), desc="episodes", unit="ep", disable=not progress)
+    if workers <= 1 or len(todo) <= 1:
+        for chunk in todo:
+            on_rows(run_chunk(chunk, prov))
+            bar.update(len(chunk))
+        bar.close()
+        return
+    saved = {v: os.environ.get(v) for v in THREAD_VARS}
+    os.environ.update(dict.fromkeys(THREAD_VARS, "1"))  # inherited by the spawned workers
+    try:
+        with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_init_worker) as pool:
+            pending = {pool.submit(run_chunk, chunk, prov): len(chunk) for chunk in todo}
+            while pending:
+                done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for f in done:
+                    on_rows(f.result())
+                    bar.update(pending.pop(f))
+    finally:
+        for v, old in saved.items():
+            if old is None:
+                os.environ.pop(v, None)
+            else:
+                os.environ[v] = old
+        bar.close()
+
+
+# ------------------------------------------------------------------------------------------- results
+class RunMismatch(RuntimeError):
+    """The output folder holds a run with other options."""
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    with open(tmp, "w") as f:
+        f.write(text)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def _csv_text(rows: Iterable[dict[str, Any]], header: bool = False) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=FIELDS, lineterminator="\n", extrasaction="ignore")
+    if header:
+        w.writeheader()
+    for r in rows:  # repr: floats read back exactly
+        w.writerow({k: repr(v) if isinstance(v, float) else v for k, v in r.items()})
+    return buf.getvalue()
+
+
+class EpisodesFile:
+    """DIR/episodes.csv and DIR/run.json (see the module docstring)."""
+
+    def __init__(self, out: Path, options: dict[str, Any]):
+        self.out, self.path = out, out / "episodes.csv"
+        out.mkdir(parents=True, exist_ok=True)
+        run = out / "run.json"
+        text = json.dumps(options, indent=1, sort_keys=True)
+        if run.exists() and json.loads(run.read_text()) != json.loads(text):
+            raise RunMismatch(
+                f"{out} holds a run with other options ({run}); use another --out or remove that folder"
+            )
+        if not run.exists():
+            if self.path.exists():
+                raise RunMismatch(f"{self.path} exists without {run}; use another --out or remove it")
+            _atomic_write(run, text + "\n")
+        self.rows = self._read()
+        _atomic_write(self.path, _csv_text(self.rows, header=True))  # without a torn tail
+
+    def _read(self) -> list[dict[str, str]]:
+        """Complete rows already on disk (a last line without its newline is a torn write: dropped)."""
+        if not self.path.exists():
+            return []
+        text = self.path.read_text()
+        if not text.endswith("\n"):
+            text = text[: text.rfind("\n") + 1]
+        rows = list(csv.DictReader(io.StringIO(text)))
+        return [r for r in rows if None not in r and len(r) == len(FIELDS)]
+
+    def done(self) -> set[tuple[str, ...]]:
+        return {tuple(r[k] for k in KEY) for r in self.rows}
+
+    def append(self, rows: list[dict[str, Any]]) -> None:
+        """One write and an fsync for a finished chunk's rows."""
+        data = _csv_text(rows).encode()
+        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+        try:
+            os.write(fd, data)
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        self.rows += list(csv.DictReader(io.StringIO(_csv_text(rows, header=True))))
+
+    def finish(self, order: list[Job]) -> list[dict[str, str]]:
+        """Rewrite the file in the jobs' order (atomically) and return its rows."""
+        rank = {j.key(): i for i, j in enumerate(order)}
+        self.rows.sort(key=lambda r: rank.get(tuple(r[k] for k in KEY), len(rank)))
+        _atomic_write(self.path, _csv_text(self.rows, header=True))
+        return self.rows
+
+
+def evaluate_to(
+    out: Path,
+    controllers: list[str],
+    episodes: list[Episode],
+    options: dict[str, Any],
+    workers: int = 1,
+    progress: bool = True,
+) -> tuple[list[dict[str, str]], list[tuple[str, str, str]]]:
+    """Run every applicable (controller, episode) job not yet in DIR/episodes.csv; returns all rows (in
+    canonical order) and the skipped (controller, scenario, reason) pairs."""
+    store = EpisodesFile(out, options)
+    jobs, skipped = plan(controllers, episodes)
+    done = store.done()
+    run_jobs([j for j in jobs if j.key() not in done], workers, store.append, progress)
+    return store.finish(jobs), skipped

@@ -1,0 +1,71 @@
+"""The evaluation engine: jobs, serial == parallel, incremental and resumable results, applicability."""
+
+import shutil
+from importlib.metadata import EntryPoint
+
+import pytest
+
+from frictiongym.agents import engine, registry
+from frictiongym.agents.base import Zero
+from frictiongym.envs.suites import Episode
+
+EPISODES = [
+    Episode(s, seed, True) for s in ("kang_regulation", "flexible_speed_step") for seed in (11, 12, 13)
+]
+CONTROLLERS = ["Zero", "PD", "RDFC", "SF"]
+OPTIONS = {"test": "engine"}
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory):
+    out = tmp_path_factory.mktemp("serial")
+    rows, skipped = engine.evaluate_to(out, CONTROLLERS, EPISODES, OPTIONS, workers=1, progress=False)
+    return out, rows, skipped
+
+
+def test_applicability_skips_with_a_reason_and_never_crashes(serial):
+    _, rows, skipped = serial
+    assert {(r["controller"], r["scenario"]) for r in rows} == {
+        ("Zero", "kang_regulation"), ("PD", "kang_regulation"), ("RDFC", "kang_regulation"),
+        ("Zero", "flexible_speed_step"), ("SF", "flexible_speed_step"),
+    }  # fmt: skip
+    reasons = {(c, s): why for c, s, why in skipped}
+    assert "tachometers" in reasons[("SF", "kang_regulation")]
+    assert "encoder" in reasons[("PD", "flexible_speed_step")]  # PD needs a position sensor
+
+
+def test_parallel_run_equals_serial_bit_for_bit(serial, tmp_path):
+    out, _, _ = serial
+    engine.evaluate_to(tmp_path, CONTROLLERS, EPISODES, OPTIONS, workers=2, progress=False)
+    assert (tmp_path / "episodes.csv").read_bytes() == (out / "episodes.csv").read_bytes()
+
+
+def test_killed_run_resumes_to_the_same_file(serial, tmp_path):
+    out, _, _ = serial
+    lines = (out / "episodes.csv").read_text().splitlines(keepends=True)
+    shutil.copy(out / "run.json", tmp_path / "run.json")
+    (tmp_path / "episodes.csv").write_text("".join(lines[:4]) + lines[4][:25])  # 3 rows + a torn write
+    rows, _ = engine.evaluate_to(tmp_path, CONTROLLERS, EPISODES, OPTIONS, workers=1, progress=False)
+    assert (tmp_path / "episodes.csv").read_bytes() == (out / "episodes.csv").read_bytes()
+    assert len(rows) == len(lines) - 1
+
+
+def test_other_options_into_the_same_folder_are_refused(serial):
+    out, _, _ = serial
+    with pytest.raises(engine.RunMismatch, match="other options"):
+        engine.evaluate_to(out, ["Zero"], EPISODES, {"test": "other"}, progress=False)
+
+
+def test_rows_carry_metrics_and_provenance(serial):
+    _, rows, _ = serial
+    r = rows[0]
+    assert set(engine.FIELDS) <= set(r)
+    assert r["package_version"] and float(r["iae"]) > 0
+
+
+def test_entry_point_controllers_are_registered(monkeypatch):
+    ep = EntryPoint(name="MyZero", value="frictiongym.agents.base:Zero", group=registry.ENTRY_POINT_GROUP)
+    monkeypatch.setattr(registry, "entry_points", lambda group: [ep] if group == ep.group else [])
+    assert isinstance(registry.make("MyZero"), Zero)
+    with pytest.raises(ValueError, match="unknown controllers"):
+        registry.make("Nobody")
