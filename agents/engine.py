@@ -16,6 +16,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import os
 import subprocess
 import sys
@@ -30,10 +31,12 @@ from typing import Any
 from tqdm import tqdm
 
 from frictiongym.envs.metrics import METRIC_NAMES
+from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
 
 from . import registry
 from .evaluate import EnvCache, run_episode
+from .stats import normalized_score
 
 CHUNK = 4  # episodes per task: small, so a killed run loses little and the pool stays balanced
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "MUJOCO_NUM_THREADS")
@@ -43,6 +46,7 @@ FIELDS = (
     "return",
     "diverged",
     *METRIC_NAMES,
+    "score",
     "controller_params",
     "package_version",
     "git_commit",
@@ -246,10 +250,11 @@ class EpisodesFile:
             os.close(fd)
         self.rows += list(csv.DictReader(io.StringIO(_csv_text(rows, header=True))))
 
-    def finish(self, order: list[Job]) -> list[dict[str, str]]:
-        """Rewrite the file in the jobs' order (atomically) and return its rows."""
+    def finish(self, order: list[Job], main_metric: dict[str, str]) -> list[dict[str, str]]:
+        """Fill in the normalised scores; rewrite the file in the jobs' order (atomically); the rows."""
         rank = {j.key(): i for i, j in enumerate(order)}
         self.rows.sort(key=lambda r: rank.get(tuple(r[k] for k in KEY), len(rank)))
+        attach_scores(self.rows, main_metric)
         _atomic_write(self.path, _csv_text(self.rows, header=True))
         return self.rows
 
@@ -268,4 +273,22 @@ def evaluate_to(
     jobs, skipped = plan(controllers, episodes)
     done = store.done()
     run_jobs([j for j in jobs if j.key() not in done], workers, store.append, progress)
-    return store.finish(jobs), skipped
+    return store.finish(jobs, main_metrics(episodes)), skipped
+
+
+def main_metrics(episodes: list[Episode]) -> dict[str, str]:
+    """Each scenario's main metric (from its YAML)."""
+    return {name: load_scenario(name).main_metric for name in {e.scenario for e in episodes}}
+
+
+def attach_scores(rows: list[dict[str, Any]], main_metric: dict[str, str]) -> None:
+    """row["score"] = 1 - m / m_Zero with m the scenario's main metric and m_Zero that of the Zero
+    controller on the same episode (nan where Zero did not run)."""
+    zero = {
+        (r["scenario"], str(r["seed"]), str(r["randomize"])): float(r[main_metric[r["scenario"]]])
+        for r in rows
+        if r["controller"] == "Zero"
+    }
+    for r in rows:
+        m_zero = zero.get((r["scenario"], str(r["seed"]), str(r["randomize"])), math.nan)
+        r["score"] = normalized_score(float(r[main_metric[r["scenario"]]]), m_zero)  # written with repr

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,6 +27,7 @@ class EpisodeResult:
     episode_return: float
     diverged: bool
     log: dict[str, np.ndarray] | None = None
+    score: float = math.nan  # normalised score 1 - m / m_Zero of the scenario's main metric (leaderboard)
 
     def row(self) -> dict[str, Any]:
         return {

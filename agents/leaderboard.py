@@ -1,5 +1,11 @@
-"""Leaderboard: every applicable controller on the identical episodes of a suite; per-scenario tables of
-mean and 95 % bootstrap intervals of the main metrics; CSV, markdown and PNG plots."""
+"""Leaderboard: every applicable controller, and the Zero reference, on the identical episodes of a suite.
+
+Per scenario: its main metric (declared in the scenario's YAML, lower is better) with a 95 % bootstrap
+interval, the normalised score s = 1 - m / m_Zero per episode, the secondary metrics, and a paired
+comparison of every controller against the scenario's best classical baseline on the same episodes (mean
+difference, its 95 % interval, probability of improvement). Across scenarios: the IQM of the normalised
+scores with stratified-bootstrap intervals, and a performance profile (agents/stats.py).
+"""
 
 from __future__ import annotations
 
@@ -14,43 +20,71 @@ from typing import Any
 import numpy as np
 
 from frictiongym.envs.metrics import METRIC_NAMES
+from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.suites import Episode, load_suite
 
-from . import engine, registry
+from . import engine, registry, stats
 from .evaluate import EnvCache, EpisodeResult, run_episode
 
-MAIN_METRICS = ("iae", "final_error", "limit_cycle_amp", "reversal_peak_error", "effort_rms")
-N_BOOT = 2000
+REFERENCE = "Zero"
+TAUS = np.linspace(-1.0, 1.0, 201)  # performance-profile thresholds of the normalised score
 
 
-def bootstrap_ci(x: np.ndarray, seed: int = 0) -> tuple[float, float, float]:
-    """Mean and 95 % percentile bootstrap interval of the finite values (fixed seed: reproducible)."""
-    x = np.asarray(x, dtype=float)
-    x = x[np.isfinite(x)]
-    if len(x) == 0:
-        return (math.nan,) * 3
-    if len(x) == 1:
-        return float(x[0]), float(x[0]), float(x[0])
-    rng = np.random.default_rng(seed)
-    means = rng.choice(x, size=(N_BOOT, len(x))).mean(axis=1)
-    return float(x.mean()), float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))
+def classical(name: str) -> bool:
+    """Built-in baselines (not the Zero reference, not plug-ins or trained models)."""
+    return name in registry.BUILTIN and name != REFERENCE
 
 
-def summarize(results: list[EpisodeResult]) -> dict[str, list[dict]]:
-    """Per scenario: one row per controller with (mean, lo, hi) per main metric, sorted by mean IAE."""
-    groups: dict[str, dict[str, list[EpisodeResult]]] = defaultdict(lambda: defaultdict(list))
+def summarize(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> dict[str, list[dict]]:
+    """Per scenario, one row per controller, sorted by the mean main metric (see the module docstring)."""
+    groups: dict[str, dict[str, list[EpisodeResult]]] = defaultdict(dict)
     for r in results:
-        groups[r.scenario][r.controller].append(r)
+        groups[r.scenario].setdefault(r.controller, []).append(r)
     table = {}
     for sc, by_ctrl in groups.items():
+        main = scenarios[sc].main_metric
+
+        def per_seed(rs: list[EpisodeResult], metric: str) -> dict[int, float]:
+            return {r.seed: r.metrics[metric] for r in rs}
+
         rows = []
         for name, rs in by_ctrl.items():
-            row = {"controller": name, "episodes": len(rs), "diverged": sum(r.diverged for r in rs)}
-            for m in MAIN_METRICS:
-                row[m] = bootstrap_ci(np.array([r.metrics[m] for r in rs]))
-            rows.append(row)
-        table[sc] = sorted(rows, key=lambda r: r["iae"][0] if np.isfinite(r["iae"][0]) else math.inf)
+            rows.append(
+                {
+                    "controller": name,
+                    "episodes": len(rs),
+                    "diverged": sum(r.diverged for r in rs),
+                    "main": stats.mean_ci([r.metrics[main] for r in rs]),
+                    "score": stats.mean_ci([r.score for r in rs]),
+                    "secondary": {
+                        m: stats.mean_ci([r.metrics[m] for r in rs]) for m in scenarios[sc].secondary_metrics
+                    },
+                }
+            )
+        rows.sort(key=lambda r: r["main"][0] if math.isfinite(r["main"][0]) else math.inf)
+        best = next((r["controller"] for r in rows if classical(r["controller"])), None)
+        for r in rows:
+            r["baseline"] = best
+            r["vs_baseline"] = None
+            if best is not None and r["controller"] != best:
+                mine, theirs = per_seed(by_ctrl[r["controller"]], main), per_seed(by_ctrl[best], main)
+                seeds = sorted(set(mine) & set(theirs))
+                r["vs_baseline"] = stats.paired([mine[s] for s in seeds], [theirs[s] for s in seeds])
+        table[sc] = rows
     return table
+
+
+def aggregate(results: list[EpisodeResult]) -> list[dict]:
+    """Per controller: the IQM of its normalised scores over the scenarios it applies to, with a 95 %
+    stratified-bootstrap interval (strata: scenarios), best first."""
+    strata: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    for r in results:
+        strata[r.controller][r.scenario].append(r.score)
+    rows = [
+        {"controller": c, "scenarios": len(by_sc), "iqm": stats.iqm_ci(list(by_sc.values()))}
+        for c, by_sc in strata.items()
+    ]
+    return sorted(rows, key=lambda r: -r["iqm"][0] if math.isfinite(r["iqm"][0]) else math.inf)
 
 
 def _fmt(ci: tuple[float, float, float]) -> str:
@@ -58,30 +92,58 @@ def _fmt(ci: tuple[float, float, float]) -> str:
     return "n/a" if not np.isfinite(m) else f"{m:.4g} [{lo:.3g}, {hi:.3g}]"
 
 
-def markdown(table: dict[str, list[dict]], suite: str) -> str:
+def _vs(r: dict) -> str:
+    v = r["vs_baseline"]
+    if v is None:
+        return "(baseline)" if r["controller"] == r["baseline"] else "n/a"
+    ci = _fmt((v["diff"], v["diff_lo"], v["diff_hi"]))
+    return f"{ci}, P(better) {v['p_improve']:.2f}"
+
+
+def markdown(
+    table: dict[str, list[dict]], agg: list[dict], suite: str, scenarios: dict[str, Scenario]
+) -> str:
     lines = [
         f"# frictiongym leaderboard, suite `{suite}`",
         "",
-        "Mean and 95 % bootstrap interval over the suite's episodes; sorted by IAE. Units: the scenario's "
-        "tracked output (rad or V) and command (V or N·m); see docs/envs.md for the metric definitions.",
+        "Per scenario: mean and 95 % bootstrap interval over the suite's episodes, sorted by the",
+        "scenario's main metric (lower is better; units: the tracked output in rad or V, the command in V or",
+        "N·m; see docs/envs.md). `score` is the normalised score s = 1 - m / m_Zero on the same episode",
+        "(1 perfect, 0 as bad as doing nothing). `vs baseline`: the mean per-episode difference of the main",
+        "metric against the scenario's best classical baseline (negative = better), its 95 % interval, and",
+        "the probability that the controller beats the baseline on an episode.",
         "",
+        "## Across scenarios",
+        "",
+        "IQM of the normalised score, 95 % stratified-bootstrap interval (over the scenarios each controller "
+        "applies to).",
+        "",
+        "| controller | scenarios | IQM score |",
+        "|---|---|---|",
     ]
+    lines += [f"| {r['controller']} | {r['scenarios']} | {_fmt(r['iqm'])} |" for r in agg]
     for sc, rows in table.items():
+        s = scenarios[sc]
+        sec = list(s.secondary_metrics)
         lines += [
+            "",
             f"## {sc}",
             "",
-            "| controller | episodes | " + " | ".join(MAIN_METRICS) + " |",
-            "|---|---|" + "---|" * len(MAIN_METRICS),
+            f"Why: {s.why}",
+            "",
+            f"| controller | episodes | {s.main_metric} (main) | score | "
+            + " | ".join(sec)
+            + " | vs baseline |",
+            "|---|---|---|---|" + "---|" * len(sec) + "---|",
         ]
         for r in rows:
             div = f" ({r['diverged']} diverged)" if r["diverged"] else ""
             lines.append(
-                f"| {r['controller']} | {r['episodes']}{div} | "
-                + " | ".join(_fmt(r[m]) for m in MAIN_METRICS)
-                + " |"
+                f"| {r['controller']} | {r['episodes']}{div} | {_fmt(r['main'])} | {_fmt(r['score'])} | "
+                + " | ".join(_fmt(r["secondary"][m]) for m in sec)
+                + f" | {_vs(r)} |"
             )
-        lines.append("")
-    return "\n".join(lines)
+    return "\n".join(lines) + "\n"
 
 
 def _atomic_text(path: Path, text: str) -> None:
@@ -91,24 +153,26 @@ def _atomic_text(path: Path, text: str) -> None:
     tmp.replace(path)
 
 
-def write_table_csv(table: dict[str, list[dict]], path: Path) -> None:
-    """The tables: one row per (scenario, controller), mean and 95 % interval of each main metric."""
+def write_table_csv(table: dict[str, list[dict]], scenarios: dict[str, Scenario], path: Path) -> None:
+    """The tables: one row per (scenario, controller): main metric and score (mean, lo, hi), paired
+    comparison against the baseline."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(
-        ["scenario", "controller", "episodes", "diverged"]
-        + [f"{m}_{k}" for m in MAIN_METRICS for k in ("mean", "lo", "hi")]
+        [
+            *("scenario", "controller", "episodes", "diverged", "main_metric", "main_mean", "main_lo"),
+            *("main_hi", "score_mean", "score_lo", "score_hi", "baseline", "diff_mean", "diff_lo"),
+            *("diff_hi", "p_improve"),
+        ]
     )
     for sc, rows in table.items():
         for r in rows:
+            v = r["vs_baseline"] or {}
             w.writerow(
-                [
-                    sc,
-                    r["controller"],
-                    r["episodes"],
-                    r["diverged"],
-                    *(repr(v) for m in MAIN_METRICS for v in r[m]),
-                ]
+                [sc, r["controller"], r["episodes"], r["diverged"], scenarios[sc].main_metric]
+                + [repr(x) for x in (*r["main"], *r["score"])]
+                + [r["baseline"]]
+                + [repr(v.get(k, math.nan)) for k in ("diff", "diff_lo", "diff_hi", "p_improve")]
             )
     _atomic_text(path, buf.getvalue())
 
@@ -118,6 +182,7 @@ def _save_png(fig, path: Path) -> str:
     import matplotlib.pyplot as plt
 
     tmp = path.with_name(f".{path.name}.tmp")
+    fig.tight_layout()
     fig.savefig(tmp, dpi=110, format="png")
     plt.close(fig)
     tmp.replace(path)
@@ -125,56 +190,73 @@ def _save_png(fig, path: Path) -> str:
 
 
 def plots(
-    results: list[EpisodeResult], table: dict[str, list[dict]], out: Path, randomize: dict[str, bool]
+    results: list[EpisodeResult],
+    table: dict[str, list[dict]],
+    agg: list[dict],
+    out: Path,
+    randomize: dict[str, bool],
 ) -> list[str]:
-    """A bar chart per metric (controllers per scenario, 95 % intervals) and, per scenario, the time
-    responses of its best and worst episodes (by IAE)."""
+    """Normalised scores per scenario (strip plots), the aggregate IQM with intervals, the performance
+    profile, and per scenario the time responses of its best and worst episodes (by the main metric)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    ctrls = [r["controller"] for r in agg]
+    colour = {c: f"C{i % 10}" for i, c in enumerate(ctrls)}
     names = []
-    scenarios = list(table)
-    ctrls = sorted({r["controller"] for rows in table.values() for r in rows})
-    width = 0.8 / max(1, len(ctrls))
-    for m in MAIN_METRICS:
-        fig, ax = plt.subplots(figsize=(max(6, 1.6 * len(scenarios)), 4))
-        for k, c in enumerate(ctrls):
-            for i, sc in enumerate(scenarios):
-                row = next((r for r in table[sc] if r["controller"] == c), None)
-                if row is None or not np.isfinite(row[m][0]):
-                    continue
-                mean, lo, hi = row[m]
-                ax.bar(
-                    i + k * width,
-                    mean,
-                    width,
-                    yerr=[[mean - lo], [hi - mean]],
-                    capsize=2,
-                    color=f"C{k}",
-                    label=c if i == 0 or c not in ax.get_legend_handles_labels()[1] else None,
-                )
-        ax.set_xticks(np.arange(len(scenarios)) + 0.4 - width / 2, scenarios, rotation=20, ha="right")
-        ax.set(ylabel=m, title=f"{m} (mean, 95 % bootstrap interval)")
-        ax.legend(fontsize=8)
-        fig.tight_layout()
-        names.append(_save_png(fig, out / f"bar_{m}.png"))
-    for sc in scenarios:
-        rs = [r for r in results if r.scenario == sc]
-        iae = [r.metrics["iae"] for r in rs]
-        best, worst = with_logs([rs[int(np.nanargmin(iae))], rs[int(np.nanargmax(iae))]], randomize[sc])
+    scs = list(table)
+    fig, axes = plt.subplots(1, len(scs), figsize=(3.2 * len(scs), 3.8), squeeze=False)
+    for ax, sc in zip(axes[0], scs, strict=True):
+        order = [r["controller"] for r in table[sc]]
+        for i, c in enumerate(order):
+            s = np.array([r.score for r in results if r.scenario == sc and r.controller == c])
+            jitter = np.random.default_rng(i).uniform(-0.15, 0.15, len(s))
+            ax.plot(i + jitter, s, "o", ms=3, alpha=0.6, color=colour[c])
+            ax.plot([i - 0.3, i + 0.3], [np.nanmean(s)] * 2, "k-", lw=1.5)
+        ax.set_xticks(range(len(order)), order, rotation=45, ha="right", fontsize=7)
+        ax.axhline(0.0, color="0.6", lw=0.8)
+        ax.set_title(sc, fontsize=8)
+    axes[0][0].set_ylabel("normalised score 1 - m/m_Zero")
+    names.append(_save_png(fig, out / "scores.png"))
+
+    fig, ax = plt.subplots(figsize=(6, 0.4 * len(agg) + 1.2))
+    for i, r in enumerate(agg):
+        m, lo, hi = r["iqm"]
+        ax.errorbar(m, i, xerr=[[m - lo], [hi - m]], fmt="o", color=colour[r["controller"]], capsize=3)
+    ax.set_yticks(range(len(agg)), [f"{r['controller']} ({r['scenarios']})" for r in agg])
+    ax.invert_yaxis()
+    ax.set(xlabel="IQM of the normalised score (95 % stratified bootstrap)", title="Across scenarios")
+    names.append(_save_png(fig, out / "aggregate_iqm.png"))
+
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for c in ctrls:
+        ax.plot(TAUS, stats.performance_profile([r.score for r in results if r.controller == c], TAUS),
+                label=c, color=colour[c])  # fmt: skip
+    ax.set(
+        xlabel="normalised score τ", ylabel="fraction of episodes with score > τ", title="Performance profile"
+    )
+    ax.legend(fontsize=7)
+    names.append(_save_png(fig, out / "performance_profile.png"))
+
+    for sc in scs:
+        main = load_scenario(sc).main_metric
+        rs = [r for r in results if r.scenario == sc and math.isfinite(r.metrics[main])]
+        if not rs:
+            continue
+        vals = [r.metrics[main] for r in rs]
+        best, worst = with_logs([rs[int(np.argmin(vals))], rs[int(np.argmax(vals))]], randomize[sc])
         fig, ax = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
         for r, style in ((best, "-"), (worst, "--")):
             g = r.log
-            lab = f"{r.controller} seed {r.seed} (IAE {r.metrics['iae']:.3g})"
+            lab = f"{r.controller} seed {r.seed} ({main} {r.metrics[main]:.3g})"
             ax[0].plot(g["t"], g["output"], style, label=f"output, {'best' if r is best else 'worst'}: {lab}")
             ax[1].step(g["t"], g["command"], style, where="pre")
         ax[0].plot(best.log["t"], best.log["reference"], "k:", label="reference")
         ax[0].set(title=f"{sc}: best and worst episode", ylabel="output")
         ax[0].legend(fontsize=7)
         ax[1].set(xlabel="t (s)", ylabel="command")
-        fig.tight_layout()
         names.append(_save_png(fig, out / f"response_{sc}.png"))
     return names
 
@@ -188,6 +270,7 @@ def result_of(row: dict[str, Any]) -> EpisodeResult:
         metrics={m: float(row[m]) for m in METRIC_NAMES},
         episode_return=float(row["return"]),
         diverged=row["diverged"] in (True, "True"),
+        score=float(row["score"]),
     )
 
 
@@ -208,13 +291,15 @@ def run(
     workers: int = 1,
     episodes: list[Episode] | None = None,
 ) -> tuple[list[EpisodeResult], dict[str, list[dict]]]:
-    """Evaluate (the suite, or the given episodes) and summarize. With out: results go to out/episodes.csv
-    incrementally (a rerun resumes), then leaderboard.md, leaderboard.csv (the tables) and PNG plots."""
+    """Evaluate (the suite, or the given episodes) with the Zero reference always included, and
+    summarize. With out: results go to out/episodes.csv incrementally (a rerun resumes), then
+    leaderboard.md, leaderboard.csv (the tables) and PNG plots, each written atomically."""
     available = registry.available()
     names = controllers or list(available)
     unknown = [n for n in names if n not in available]
     if unknown:
         raise ValueError(f"unknown controllers {unknown}; available: {list(available)}")
+    names = [REFERENCE, *(n for n in names if n != REFERENCE)]
     episodes = episodes if episodes is not None else load_suite(suite)
     if out is None:
         jobs, skipped = engine.plan(names, episodes)
@@ -222,6 +307,7 @@ def run(
         engine.run_jobs(jobs, workers, rows.extend, progress)
         rank = {j.key(): i for i, j in enumerate(jobs)}
         rows.sort(key=lambda r: rank[(r["controller"], r["scenario"], str(r["seed"]), str(r["randomize"]))])
+        engine.attach_scores(rows, engine.main_metrics(episodes))
     else:
         options = {"episodes": [asdict(e) for e in episodes], "controllers": names}
         rows, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress)
@@ -229,11 +315,11 @@ def run(
         if progress:
             print(f"skipped {name} on {scenario}: {reason}")
     results = [result_of(r) for r in rows]
-    table = summarize(results)
+    scenarios = {name: load_scenario(name) for name in {e.scenario for e in episodes}}
+    table, agg = summarize(results, scenarios), aggregate(results)
     if out is not None:
-        write_table_csv(table, out / "leaderboard.csv")
-        figs = plots(results, table, out, randomize={e.scenario: e.randomize for e in episodes})
-        _atomic_text(
-            out / "leaderboard.md", markdown(table, suite) + "\n" + "".join(f"![{f}]({f})\n" for f in figs)
-        )
+        write_table_csv(table, scenarios, out / "leaderboard.csv")
+        figs = plots(results, table, agg, out, {e.scenario: e.randomize for e in episodes})
+        md = markdown(table, agg, suite, scenarios)
+        _atomic_text(out / "leaderboard.md", md + "\n" + "".join(f"![{f}]({f})\n" for f in figs))
     return results, table

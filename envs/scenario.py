@@ -12,7 +12,7 @@ from __future__ import annotations
 import copy
 import itertools
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from pathlib import Path
 from typing import Any
@@ -21,6 +21,7 @@ import numpy as np
 
 from .config import ConfigError, Node, interval, load_yaml, merge, number, preset_names, preset_path
 from .friction import FRICTION_MODELS
+from .metrics import METRIC_NAMES
 from .plants import PlantSpec, plant_names, plant_spec
 from .plants.mjcf import friction_joints
 from .step import ObservationLayout, observation_layout
@@ -82,6 +83,9 @@ class Scenario:
     history: int
     privileged: bool
     reward_weights: dict[str, float]
+    main_metric: str = "iae"  # what the leaderboard ranks by (every metric: lower is better)
+    secondary_metrics: tuple[str, ...] = ()
+    why: str = ""  # the friction phenomenon the scenario exercises, and where in the documents
 
     @property
     def control_period(self) -> float:
@@ -239,6 +243,15 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
         privileged=obs.boolean("privileged"),
         reward_weights={k: rw.nonneg(k, MAX_REWARD_WEIGHT) for k in ("tracking", "effort", "smoothness")},
     )
+    b = c.section("benchmark")
+    main = b.choice("main_metric", METRIC_NAMES)
+    secondary = b["secondary_metrics"]
+    if not isinstance(secondary, list) or any(m not in METRIC_NAMES for m in secondary):
+        raise b.error("secondary_metrics", f"expected a list of metrics from {list(METRIC_NAMES)}")
+    why = b["why"]
+    if not isinstance(why, str) or not why.strip():
+        raise b.error("why", "expected one line saying which friction phenomenon, and where in the documents")
+    scenario = replace(scenario, main_metric=main, secondary_metrics=tuple(secondary), why=why.strip())
     c.get("description")
     c.done()
     return scenario

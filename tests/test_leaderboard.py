@@ -8,26 +8,41 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from frictiongym.agents import leaderboard
+from frictiongym.agents import leaderboard, stats
 
 ROOT = Path(__file__).parents[1]
 
 
 def test_bootstrap_interval_brackets_the_mean_and_is_reproducible():
     x = np.array([1.0, 2.0, 3.0, 4.0, 10.0])
-    m, lo, hi = leaderboard.bootstrap_ci(x)
+    m, lo, hi = stats.mean_ci(x)
     assert m == pytest.approx(4.0) and lo < m < hi
-    assert leaderboard.bootstrap_ci(x) == (m, lo, hi)
-    assert leaderboard.bootstrap_ci(np.array([np.nan, 2.0])) == (2.0, 2.0, 2.0)
+    assert stats.mean_ci(x) == (m, lo, hi)
+    assert stats.mean_ci(np.array([np.nan, 2.0])) == (2.0, 2.0, 2.0)
+
+
+def test_statistics_agree_with_hand_computed_values():
+    assert stats.normalized_score(0.5, 2.0) == 0.75 and np.isnan(stats.normalized_score(1.0, 0.0))
+    assert stats.iqm(np.arange(1.0, 9.0)) == pytest.approx(4.5)  # mean of 3, 4, 5, 6
+    # pooled 1..8 and 10..13: the middle half is 4..8 and 10, mean 40/6
+    iqm, lo, hi = stats.iqm_ci([np.arange(1.0, 9.0), np.arange(10.0, 14.0)])
+    assert iqm == pytest.approx(40 / 6) and lo <= iqm <= hi
+    p = stats.paired([1.0, 2.0, 3.0], [2.0, 2.0, 5.0])  # differences -1, 0, -2
+    assert p["diff"] == pytest.approx(-1.0) and p["p_improve"] == pytest.approx(2.5 / 3)  # a tie counts 1/2
+    assert p["diff_lo"] <= -1.0 <= p["diff_hi"]
+    prof = stats.performance_profile([0.1, 0.5, 0.9, -0.2], np.array([0.0, 0.5]))
+    assert list(prof) == [0.75, 0.25]  # scores > 0: 3 of 4; > 0.5: 1 of 4
 
 
 def test_same_episodes_for_every_controller_and_sorted_table():
     results, table = leaderboard.run("paper", ["PD", "RDFC"], out=None, progress=False)
     kang = [r for r in results if r.scenario == "kang_regulation"]
-    assert {r.controller for r in kang} == {"PD", "RDFC"} and {r.seed for r in kang} == {0}
+    assert {r.controller for r in kang} == {"Zero", "PD", "RDFC"} and {r.seed for r in kang} == {0}
     rows = table["kang_regulation"]
-    assert [r["controller"] for r in rows] == ["RDFC", "PD"]  # sorted by IAE: RDFC removes the PD error
-    assert "flexible_speed_step" not in table  # neither controller applies there
+    # sorted by the main metric (final error): RDFC removes the PD error; Zero is always in the table
+    assert [r["controller"] for r in rows] == ["RDFC", "PD", "Zero"]
+    assert rows[0]["vs_baseline"] is None and rows[1]["vs_baseline"]["p_improve"] == 0.0
+    assert [r["controller"] for r in table["flexible_speed_step"]] == ["Zero"]  # PD, RDFC do not apply
 
 
 def test_unknown_controller_is_a_clear_error():
@@ -55,12 +70,13 @@ def test_script_writes_markdown_csv_and_plots(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "## kang_regulation" in proc.stdout
     rows = list(csv.DictReader((tmp_path / "leaderboard.csv").read_text().splitlines()))
-    assert {r["controller"] for r in rows} == {"PD", "PID"}
+    assert {r["controller"] for r in rows} == {"Zero", "PD", "PID"}
     episodes = list(csv.DictReader((tmp_path / "episodes.csv").read_text().splitlines()))
     assert {(r["controller"], r["scenario"]) for r in episodes} >= {
         ("PD", "kang_regulation"),
         ("PID", "m220_regulation"),
     }
     assert (tmp_path / "leaderboard.md").read_text().startswith("# frictiongym leaderboard")
-    assert (tmp_path / "bar_iae.png").stat().st_size > 5000
+    for png in ("scores.png", "aggregate_iqm.png", "performance_profile.png"):
+        assert (tmp_path / png).stat().st_size > 5000
     assert (tmp_path / "response_kang_regulation.png").stat().st_size > 5000

@@ -1,0 +1,109 @@
+"""Statistics of the leaderboard, after Agarwal et al. 2021 ("Deep RL at the edge of the statistical
+precipice", the rliable methods) with scipy.stats: bootstrap intervals, the interquartile mean (IQM) with
+stratified-bootstrap intervals, paired comparisons on identical episodes, and performance profiles.
+
+Every metric is "lower is better"; the normalised score s = 1 - m / m_Zero is "higher is better" (1: perfect,
+0: as bad as doing nothing, < 0: worse). Bootstraps use a fixed seed, so the numbers are reproducible.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.stats import bootstrap, trim_mean
+
+CONFIDENCE = 0.95
+N_RESAMPLES = 2000
+SEED = 0
+
+
+def normalized_score(m: float, m_zero: float) -> float:
+    """s = 1 - m / m_Zero on one episode (nan if m_Zero is 0 or either is not finite)."""
+    if not (math.isfinite(m) and math.isfinite(m_zero)) or m_zero == 0:
+        return math.nan
+    return 1.0 - m / m_zero
+
+
+def _finite(x: Sequence[float]) -> np.ndarray:
+    x = np.asarray(x, dtype=float)
+    return x[np.isfinite(x)]
+
+
+def mean_ci(x: Sequence[float]) -> tuple[float, float, float]:
+    """Mean and 95 % percentile-bootstrap interval of the finite values ((v, v, v) for a single value or
+    identical values; nan if none)."""
+    x = _finite(x)
+    if len(x) == 0:
+        return (math.nan,) * 3
+    if len(x) == 1 or np.all(x == x[0]):
+        return float(x.mean()), float(x.mean()), float(x.mean())
+    res = bootstrap(
+        (x,),
+        np.mean,
+        confidence_level=CONFIDENCE,
+        n_resamples=N_RESAMPLES,
+        method="percentile",
+        rng=np.random.default_rng(SEED),
+    )
+    return float(x.mean()), float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+def iqm(x: Sequence[float]) -> float:
+    """Interquartile mean: the mean of the middle 50 % (scipy's trim_mean, 25 % cut at each end)."""
+    x = _finite(x)
+    return float(trim_mean(x, 0.25)) if len(x) else math.nan
+
+
+def iqm_ci(strata: Sequence[Sequence[float]]) -> tuple[float, float, float]:
+    """IQM of the pooled scores and its 95 % stratified-bootstrap interval: each stratum (a scenario's
+    episodes) is resampled on its own, so every scenario keeps its weight."""
+    strata = [s for s in (_finite(x) for x in strata) if len(s)]
+    if not strata:
+        return (math.nan,) * 3
+    point = iqm(np.concatenate(strata))
+    varied = [s for s in strata if len(s) > 1 and not np.all(s == s[0])]
+    if not varied:  # every stratum resamples to itself
+        return point, point, point
+    # a stratum of one value (or of equal values) resamples to itself: it enters as a constant
+    fixed = np.concatenate([s for s in strata if not any(s is v for v in varied)] or [np.empty(0)])
+
+    def stat(*samples: np.ndarray, axis: int = -1) -> np.ndarray:
+        const = np.broadcast_to(fixed, (*samples[0].shape[:-1], len(fixed)))
+        return trim_mean(np.concatenate([*samples, const], axis=-1), 0.25, axis=-1)
+
+    res = bootstrap(
+        tuple(varied),
+        stat,
+        confidence_level=CONFIDENCE,
+        n_resamples=N_RESAMPLES,
+        method="percentile",
+        rng=np.random.default_rng(SEED),
+    )
+    return point, float(res.confidence_interval.low), float(res.confidence_interval.high)
+
+
+def paired(candidate: Sequence[float], baseline: Sequence[float]) -> dict[str, float]:
+    """A candidate against a baseline on identical episodes (metric values, lower is better): the mean
+    per-episode difference (candidate - baseline, negative = better) with its 95 % bootstrap interval,
+    and the probability of improvement P(candidate < baseline), ties counting one half."""
+    c, b = np.asarray(candidate, dtype=float), np.asarray(baseline, dtype=float)
+    if c.shape != b.shape:
+        raise ValueError(f"paired samples need the same episodes: {c.shape} vs {b.shape}")
+    ok = np.isfinite(c) & np.isfinite(b)
+    c, b = c[ok], b[ok]
+    if len(c) == 0:
+        return {"diff": math.nan, "diff_lo": math.nan, "diff_hi": math.nan, "p_improve": math.nan, "n": 0}
+    mean, lo, hi = mean_ci(c - b)
+    p = float(np.mean((c < b) + 0.5 * (c == b)))
+    return {"diff": mean, "diff_lo": lo, "diff_hi": hi, "p_improve": p, "n": len(c)}
+
+
+def performance_profile(scores: Sequence[float], taus: np.ndarray) -> np.ndarray:
+    """Fraction of episodes whose normalised score exceeds each threshold τ (the run-score distribution
+    of Agarwal et al. 2021, Fig. 5)."""
+    s = _finite(scores)
+    if len(s) == 0:
+        return np.full(len(taus), math.nan)
+    return (s[None, :] > np.asarray(taus)[:, None]).mean(axis=1)
