@@ -90,7 +90,7 @@ def merge(base: Mapping[str, Any], overrides: Any, prefix: str = "", source: str
         field = f"{prefix}{key}"
         if key not in out:
             raise ConfigError(field, f"unknown key; allowed: {sorted(out)}", source)
-        if isinstance(out[key], dict):
+        if isinstance(out[key], dict) and value is not None:  # None replaces (e.g. disturbance: None)
             out[key] = merge(out[key], value, prefix=f"{field}.", source=source)
         else:
             out[key] = copy.deepcopy(value)

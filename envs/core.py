@@ -62,9 +62,12 @@ class SingleBackend:
     def set_delay(self, ids: np.ndarray, delay: np.ndarray) -> None:
         self.model.actuator_delay[self.idx.drive] = delay[0]
 
-    def step(self, ids: np.ndarray, command: np.ndarray) -> np.ndarray:
-        """Advance simulations ids one control period; returns their 'diverged' flags."""
+    def step(self, ids: np.ndarray, command: np.ndarray, disturbance: np.ndarray | None) -> np.ndarray:
+        """Advance simulations ids one control period (command, and the load torque if any, held over
+        it); returns their 'diverged' flags."""
         self.data.ctrl[self.idx.drive_ctrl] = command[0]
+        if disturbance is not None:
+            self.data.ctrl[self.idx.disturbance_ctrl] = disturbance[0]
         mujoco.mj_step(self.model, self.data, self.sc.spec.substeps)
         w = self.data.warning
         return self._bad if any(w[i].number > 0 for i in DIVERGENCE_WARNINGS) else self._good
@@ -101,8 +104,10 @@ class BatchBackend:
     def set_delay(self, ids: np.ndarray, delay: np.ndarray) -> None:
         self.delay[ids, self.idx.drive] = delay
 
-    def step(self, ids: np.ndarray, command: np.ndarray) -> np.ndarray:
+    def step(self, ids: np.ndarray, command: np.ndarray, disturbance: np.ndarray | None) -> np.ndarray:
         self.ctrl[ids, self.idx.drive_ctrl] = command
+        if disturbance is not None:
+            self.ctrl[ids, self.idx.disturbance_ctrl] = disturbance
         try:
             self.batch.step(ids, nstep=self.sc.spec.substeps)
         except SimulationError as e:  # those simulations kept their state; the others ran
@@ -148,6 +153,8 @@ class ServoCore:
         T = sc.episode_steps
         self.t = np.arange(T + 1) * sc.control_period
         self.ref = sc.reference(np.arange(T + 1 + sc.preview_steps) * sc.control_period)
+        # load torque (N·m) held over the period that starts at t_k
+        self.disturbance = sc.disturbance(self.t[:-1]) if sc.disturbance is not None else None
         # per-simulation episode state
         self.k = np.zeros(n, dtype=int)
         self.prev_action = np.zeros(n)
@@ -174,6 +181,7 @@ class ServoCore:
         if self._fast:  # live views of the MjData's warning counters (reset with it)
             self._warnings = [self.backend.data.warning[i] for i in DIVERGENCE_WARNINGS]
         self._t = self.t.tolist()
+        self._disturbance = self.disturbance.tolist() if self.disturbance is not None else None
         self._substeps = spec.substeps
         self._window = range(sc.preview_steps + 1)
         self._sens = [
@@ -245,7 +253,8 @@ class ServoCore:
         if len(jittered):
             j = np.array([self.jitter_rng[i].integers(0, self.jitter_steps[i] + 1) for i in jittered])
             self.backend.set_delay(jittered, (self.delay_steps[jittered] + j) * self.sc.spec.timestep)
-        self.diverged[ids] |= self.backend.step(ids, command)
+        dist = self.disturbance[self.k[ids]] if self.disturbance is not None else None
+        self.diverged[ids] |= self.backend.step(ids, command, dist)
         self.k[ids] += 1
         k = self.k[ids]
         a_prev = self.prev_action[ids].copy()
@@ -284,6 +293,8 @@ class ServoCore:
             self.backend.set_delay(self._all, np.array([(self.delay_steps[0] + j) * sc.spec.timestep]))
         b = self.backend
         b.data.ctrl[self.idx.drive_ctrl] = command
+        if self._disturbance is not None:
+            b.data.ctrl[self.idx.disturbance_ctrl] = self._disturbance[int(self.k[0])]
         mujoco.mj_step(b.model, b.data, self._substeps)
         diverged = bool(self.diverged[0]) or max(map(_NUMBER, self._warnings)) > 0
         self.diverged[0] = diverged

@@ -83,6 +83,7 @@ class Scenario:
     history: int
     privileged: bool
     reward_weights: dict[str, float]
+    disturbance: Reference | None = None  # load torque (N·m) of the rig's disturbance motor, unmeasured
     main_metric: str = "iae"  # what the leaderboard ranks by (every metric: lower is better)
     secondary_metrics: tuple[str, ...] = ()
     why: str = ""  # the friction phenomenon the scenario exercises, and where in the documents
@@ -243,6 +244,10 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
         privileged=obs.boolean("privileged"),
         reward_weights={k: rw.nonneg(k, MAX_REWARD_WEIGHT) for k in ("tracking", "effort", "smoothness")},
     )
+    if c.get("disturbance") is not None:
+        if spec.disturbance_joint is None:
+            raise c.error("disturbance", f"plant {spec.name} has no disturbance motor")
+        scenario = replace(scenario, disturbance=_reference(c.section("disturbance"))[0])
     b = c.section("benchmark")
     main = b.choice("main_metric", METRIC_NAMES)
     secondary = b["secondary_metrics"]

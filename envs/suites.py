@@ -31,13 +31,19 @@ def load_suite(name: str) -> list[Episode]:
     s = suites.section(name)
     randomize = s.boolean("randomize")
     known = scenario_names()
-    scenarios, seeds = s["scenarios"], s["seeds"]
-    for key, value in (("scenarios", scenarios), ("seeds", seeds)):
-        if not isinstance(value, list) or not value:
-            raise s.error(key, f"expected a non-empty list, got {value!r}")
+    scenarios = s["scenarios"]
+    if not isinstance(scenarios, list) or not scenarios:
+        raise s.error("scenarios", f"expected a non-empty list, got {scenarios!r}")
     for i, sc in enumerate(scenarios):
         if sc not in known:
             raise s.error(f"scenarios[{i}]", f"unknown scenario {sc!r}; available: {known}")
-    seeds = [s.check(integer, x, s.field(f"seeds[{i}]"), 0) for i, x in enumerate(seeds)]
+    if isinstance(s["seeds"], dict):  # {start, count}
+        r = s.section("seeds")
+        start, count = r.integer("start", 0), r.integer("count", 1, 100_000)
+        seeds = list(range(start, start + count))
+    elif isinstance(s["seeds"], list) and s["seeds"]:
+        seeds = [s.check(integer, x, s.field(f"seeds[{i}]"), 0) for i, x in enumerate(s["seeds"])]
+    else:
+        raise s.error("seeds", f"expected a non-empty list or {{start, count}}, got {s['seeds']!r}")
     s.done()
     return [Episode(sc, seed, randomize) for sc in scenarios for seed in seeds]

@@ -77,6 +77,7 @@ class Rig:
             sensors=(),
             rate_feedback=0.0,
             rate_loop=False,
+            disturbance_joint=None,
             delay=0.0,
         )
         xml = to_mjcf(rig)

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from frictiongym.agents import leaderboard, stats
+from frictiongym.agents import leaderboard, registry, stats
 
 ROOT = Path(__file__).parents[1]
 
@@ -80,3 +80,15 @@ def test_script_writes_markdown_csv_and_plots(tmp_path):
     for png in ("scores.png", "aggregate_iqm.png", "performance_profile.png"):
         assert (tmp_path / png).stat().st_size > 5000
     assert (tmp_path / "response_kang_regulation.png").stat().st_size > 5000
+
+
+@pytest.mark.parametrize("suite", ["paper", "default", "test"])
+def test_every_classical_baseline_beats_zero_on_every_scenario(suite):
+    """Each scenario needs compensation: doing nothing loses to every classical baseline on its main
+    metric (mean over the suite's episodes). flexible_zero_speed passes through its load torque."""
+    _, table = leaderboard.run(suite, list(registry.BUILTIN), None, progress=False, workers=2)
+    for sc, rows in table.items():
+        zero = next(r["main"][0] for r in rows if r["controller"] == "Zero")
+        for r in rows:
+            if r["controller"] != "Zero":
+                assert r["main"][0] < zero, (sc, r["controller"], r["main"][0], zero)

@@ -73,6 +73,7 @@ def build(cfg: Node, friction_model: str) -> PlantSpec:
             ),
         ),
         sensors=tuple(sensors),
+        disturbance_joint="shaft2",  # motor 2 sits on the load (J2 "incl. motor 2", §3.1)
         randomization=randomization(cfg),
     )
 

@@ -173,6 +173,7 @@ def build(cfg: Node, friction_model: str) -> PlantSpec:
         belts=belts,
         sensors=tuple(sensors),
         belt_timeconst=cfg.section("sampling").positive("belt_timeconst_s", 1.0),
+        disturbance_joint="load",  # the load disk carries a disturbance motor (J_dl, §2.1.2)
         randomization=randomization(cfg),
         document=doc,
     )

@@ -17,7 +17,8 @@ def friction_joints(spec: PlantSpec) -> list[str]:
 
 
 def to_mjcf(spec: PlantSpec) -> str:
-    """MJCF text of the plant. Actuator order: drive motor, friction elements, rate feedback."""
+    """MJCF text of the plant. Actuator order: drive motor, friction elements, rate feedback, load-side
+    disturbance motor (its command is a torque in N·m)."""
     nsample = spec.substeps + 2  # history for delays up to one control period
     bodies, actuators, extra = [], [], []
     for i, j in enumerate(spec.joints):
@@ -57,6 +58,8 @@ def to_mjcf(spec: PlantSpec) -> str:
             f'<velocity name="rate_feedback" joint="{spec.actuator_joint}" '
             f'kv="{max(spec.rate_feedback, 1e-12)!r}"/>'
         )
+    if spec.disturbance_joint is not None:  # last, so the other actuators keep their ids
+        actuators.append(f'<motor name="disturbance" joint="{spec.disturbance_joint}" gear="1"/>')
     for b in spec.belts:
         extra.append(
             f'<equality><joint joint1="{b.driven}" joint2="{b.driver}" polycoef="0 {b.ratio!r} 0 0 0" '

@@ -187,6 +187,7 @@ class ModelIndex:
     drive_ctrl: int  # its ctrl index
     friction: tuple[int, ...]  # friction actuator ids
     rate: int  # rate-feedback actuator id or -1
+    disturbance_ctrl: int  # ctrl index of the load-side disturbance motor or -1
     dofs: tuple[int, ...]
     tendons: tuple[int, ...]
 
@@ -199,6 +200,9 @@ class ModelIndex:
             drive_ctrl=int(model.actuator_ctrladr[drive]),
             friction=tuple(aid(f"friction_{n}") for n in friction_joints(spec)),
             rate=aid("rate_feedback"),
+            disturbance_ctrl=int(model.actuator_ctrladr[aid("disturbance")])
+            if aid("disturbance") >= 0
+            else -1,
             dofs=tuple(
                 int(model.jnt_dofadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j.name)])
                 for j in spec.joints

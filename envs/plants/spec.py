@@ -89,6 +89,7 @@ class PlantSpec:
     rate_feedback: float = 0.0  # N·m·s/rad, analog velocity feedback at physics rate (Kang §4)
     belt_timeconst: float = 0.0  # s, equality solref time constant
     rate_loop: bool = False  # the rig has an analog rate-feedback loop (a velocity actuator, Kang §4)
+    disturbance_joint: str | None = None  # joint of the rig's load-side disturbance motor (torque, N·m)
     randomization: dict[str, tuple[float, float]] = field(default_factory=dict)
     document: Any = None  # the plant module's typed document data (values the checks and designs use)
 
