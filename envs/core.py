@@ -213,6 +213,9 @@ class ServoCore:
         init = stream(seed, INITIAL_STATE)
         qpos = sc.spec.full_state(init.uniform(sc.qpos_range[:, 0], sc.qpos_range[:, 1]))
         qvel = sc.spec.full_state(init.uniform(sc.qvel_range[:, 0], sc.qvel_range[:, 1]))
+        if sc.random_sign:  # drawn after the ranges: scenarios without it keep their draws
+            sign = 1.0 if init.random() < 0.5 else -1.0
+            qpos, qvel = sign * qpos, sign * qvel
         return params, qpos, qvel, [stream(seed, SENSOR_NOISE), stream(seed, JITTER)]
 
     def reset(self, ids: np.ndarray, seeds: list[int], pinned: dict | None = None) -> np.ndarray:

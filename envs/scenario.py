@@ -26,7 +26,7 @@ from .plants import PlantSpec, plant_names, plant_spec
 from .plants.mjcf import friction_joints
 from .step import ObservationLayout, observation_layout
 
-REFERENCE_TYPES = ("constant", "steps", "sine", "triangle")
+REFERENCE_TYPES = ("constant", "steps", "sine", "triangle", "trapezoid")
 DEFAULTS = "_defaults"  # configs/scenarios/_defaults.yaml, which every scenario extends
 MAX_EPISODE_S = 3600.0  # one hour of simulated time
 MAX_EPISODE_STEPS = 1_000_000  # the per-episode logs hold 3 floats per step and simulation
@@ -40,7 +40,13 @@ def scenario_names() -> list[str]:
 
 @dataclass(frozen=True)
 class Reference:
-    """Reference generator r(t) in the tracked sensor's unit (rad or V)."""
+    """Reference generator r(t) in the tracked sensor's unit (rad or V).
+
+    constant: value. steps: schedule of [t_start, value] (0 before the first). sine / triangle: offset +
+    amplitude·wave(2π·frequency_hz·t + phase_rad). trapezoid: point-to-point moves from offset; schedule
+    of [t_start, target], each move with a trapezoidal velocity profile limited by max_velocity and
+    max_acceleration (units per s, per s²), finished before the next starts.
+    """
 
     type: str
     value: float = 0.0
@@ -49,6 +55,31 @@ class Reference:
     frequency_hz: float = 0.0
     offset: float = 0.0
     phase_rad: float = 0.0
+    max_velocity: float = 0.0
+    max_acceleration: float = 0.0
+
+    def move_duration(self, distance: float) -> float:
+        """Duration (s) of a trapezoidal move over distance (triangular if it never reaches v_max)."""
+        v, a = self.max_velocity, self.max_acceleration
+        return distance / v + v / a if distance >= v * v / a else 2.0 * np.sqrt(distance / a)
+
+    def _moves(self, t: np.ndarray) -> np.ndarray:
+        out = np.full_like(t, self.offset)
+        v, a, start = self.max_velocity, self.max_acceleration, self.offset
+        for ts, target in self.schedule:
+            d = abs(target - start)
+            T = self.move_duration(d)
+            tau = np.clip(t - ts, 0.0, T)
+            ta = min(v / a, np.sqrt(d / a))  # acceleration phase
+            vp = a * ta  # peak velocity
+            s = np.where(
+                tau < ta,
+                0.5 * a * tau**2,
+                np.where(tau <= T - ta, 0.5 * a * ta**2 + vp * (tau - ta), d - 0.5 * a * (T - tau) ** 2),
+            )
+            out = np.where(t >= ts, start + np.sign(target - start) * s, out)
+            start = target
+        return out
 
     def __call__(self, t: np.ndarray | float) -> np.ndarray:
         t = np.asarray(t, dtype=float)
@@ -58,6 +89,8 @@ class Reference:
             starts = np.array([s for s, _ in self.schedule])
             values = np.array([0.0] + [v for _, v in self.schedule])
             return values[np.searchsorted(starts, t + 1e-12, side="right")]
+        if self.type == "trapezoid":
+            return self._moves(t)
         w = 2.0 * np.pi * self.frequency_hz * t + self.phase_rad
         if self.type == "sine":
             return self.offset + self.amplitude * np.sin(w)
@@ -80,6 +113,7 @@ class Scenario:
     preview_steps: int
     qpos_range: np.ndarray  # (nv, 2)
     qvel_range: np.ndarray  # (nv, 2)
+    random_sign: bool  # the drawn initial state is mirrored (x -1) with probability 1/2
     history: int
     privileged: bool
     reward_weights: dict[str, float]
@@ -109,6 +143,22 @@ class Scenario:
         return "regulation" if self.reference.type == "constant" else "tracking"
 
 
+def _schedule(r: Node) -> tuple[tuple[float, float], ...]:
+    """reference.schedule: a non-empty list of [t_start, value] pairs with increasing start times."""
+    sched = r["schedule"]
+    if not isinstance(sched, list) or not sched:
+        raise r.error("schedule", "expected a non-empty list of [t_start, value] pairs")
+    pairs = []
+    for i, p in enumerate(sched):
+        f = r.field(f"schedule[{i}]")
+        if not isinstance(p, list | tuple) or len(p) != 2:
+            raise ConfigError(f, f"expected [t_start, value], got {p!r}", r.source)
+        pairs.append((r.check(number, p[0], f"{f}[0]", 0.0), r.check(number, p[1], f"{f}[1]")))
+    if any(b[0] <= a[0] for a, b in itertools.pairwise(pairs)):
+        raise r.error("schedule", "start times must increase")
+    return tuple(pairs)
+
+
 def _reference(r: Node) -> tuple[Reference, int]:
     """The reference generator and its preview length (steps)."""
     kind = r.choice("type", REFERENCE_TYPES)
@@ -116,18 +166,22 @@ def _reference(r: Node) -> tuple[Reference, int]:
     if kind == "constant":
         return Reference("constant", value=r.number("value", default=0.0)), preview
     if kind == "steps":
-        sched = r["schedule"]
-        if not isinstance(sched, list) or not sched:
-            raise r.error("schedule", "expected a non-empty list of [t_start, value] pairs")
-        pairs = []
-        for i, p in enumerate(sched):
-            f = r.field(f"schedule[{i}]")
-            if not isinstance(p, list | tuple) or len(p) != 2:
-                raise ConfigError(f, f"expected [t_start, value], got {p!r}", r.source)
-            pairs.append((r.check(number, p[0], f"{f}[0]", 0.0), r.check(number, p[1], f"{f}[1]")))
-        if any(b[0] <= a[0] for a, b in itertools.pairwise(pairs)):
-            raise r.error("schedule", "start times must increase")
-        return Reference("steps", schedule=tuple(pairs)), preview
+        return Reference("steps", schedule=_schedule(r)), preview
+    if kind == "trapezoid":
+        ref = Reference(
+            "trapezoid",
+            schedule=_schedule(r),
+            offset=r.number("offset", default=0.0),
+            max_velocity=r.positive("max_velocity"),
+            max_acceleration=r.positive("max_acceleration"),
+        )
+        start = ref.offset
+        for i, ((ts, target), nxt) in enumerate(itertools.zip_longest(ref.schedule, ref.schedule[1:])):
+            end = ts + ref.move_duration(abs(target - start))
+            if nxt is not None and end > nxt[0]:
+                raise r.error(f"schedule[{i}]", f"the move ends at {end:.4g} s, after the next starts")
+            start = target
+        return ref, preview
     ref = Reference(
         kind,
         amplitude=r.nonneg("amplitude", default=0.0),
@@ -240,6 +294,7 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
         preview_steps=preview,
         qpos_range=_ranges(init, "qpos", n_init),
         qvel_range=_ranges(init, "qvel", n_init),
+        random_sign=init.boolean("random_sign"),
         history=obs.integer("history", 0, 1000),
         privileged=obs.boolean("privileged"),
         reward_weights={k: rw.nonneg(k, MAX_REWARD_WEIGHT) for k in ("tracking", "effort", "smoothness")},

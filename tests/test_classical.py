@@ -12,7 +12,7 @@ from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
 
-KANG = Episode("kang_regulation", 0, False)
+KANG = Episode("kang_regulation_20deg", 0, False)
 
 
 def test_kang_pd_gains_follow_from_the_document():

@@ -116,8 +116,8 @@ def test_observation_layout_and_scaling_helpers():
 
 
 def test_privileged_observation_only_on_request():
-    plain = make("kang_regulation")
-    priv = make("kang_regulation", overrides={"observation": {"privileged": True}})
+    plain = make("kang_regulation_20deg")
+    priv = make("kang_regulation_20deg", overrides={"observation": {"privileged": True}})
     assert priv.observation_space.shape[0] == plain.observation_space.shape[0] + 3
     obs, _ = priv.reset(seed=0)
     assert obs[-3] == pytest.approx(1.0)  # true output / output_scale = 20 deg / 20 deg
@@ -177,7 +177,7 @@ def test_vector_env_matches_single_envs_bit_for_bit_across_autoresets(scenario, 
 
 
 def test_sb3_adapter_autoresets_with_terminal_observation():
-    venv = make_sb3_vec_env("kang_regulation", 2, nthread=2, episode_s=0.1)  # 5 steps per episode
+    venv = make_sb3_vec_env("kang_regulation_20deg", 2, nthread=2, episode_s=0.1)  # 5 steps per episode
     venv.reset()
     for _k in range(5):
         obs, _rew, done, infos = venv.step(np.zeros((2, 1)))

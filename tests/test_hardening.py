@@ -103,7 +103,7 @@ def test_pinned_parameters_are_applied_and_echoed():
 
 def test_plantsim_noise_matches_the_env_for_the_same_seed():
     ov = {"sensors": {"encoder": {"noise_std_deg": 0.01}}}
-    env = ServoEnv("kang_regulation", overrides={"plant_overrides": ov})
+    env = ServoEnv("kang_regulation_20deg", overrides={"plant_overrides": ov})
     env.reset(seed=4)
     obs, *_ = env.step(np.zeros(1, np.float32))
     sim = PlantSim("kang_robot", ov)

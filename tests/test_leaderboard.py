@@ -36,9 +36,9 @@ def test_statistics_agree_with_hand_computed_values():
 
 def test_same_episodes_for_every_controller_and_sorted_table():
     results, table = leaderboard.run("paper", ["PD", "RDFC"], out=None, progress=False)
-    kang = [r for r in results if r.scenario == "kang_regulation"]
+    kang = [r for r in results if r.scenario == "kang_regulation_20deg"]
     assert {r.controller for r in kang} == {"Zero", "PD", "RDFC"} and {r.seed for r in kang} == {0}
-    rows = table["kang_regulation"]
+    rows = table["kang_regulation_20deg"]
     # sorted by the main metric (final error): RDFC removes the PD error; Zero is always in the table
     assert [r["controller"] for r in rows] == ["RDFC", "PD", "Zero"]
     assert rows[0]["vs_baseline"] is None and rows[1]["vs_baseline"]["p_improve"] == 0.0
@@ -68,18 +68,18 @@ def test_script_writes_markdown_csv_and_plots(tmp_path):
         timeout=600,
     )
     assert proc.returncode == 0, proc.stderr
-    assert "## kang_regulation" in proc.stdout
+    assert "## kang_regulation_20deg" in proc.stdout
     rows = list(csv.DictReader((tmp_path / "leaderboard.csv").read_text().splitlines()))
     assert {r["controller"] for r in rows} == {"Zero", "PD", "PID"}
     episodes = list(csv.DictReader((tmp_path / "episodes.csv").read_text().splitlines()))
     assert {(r["controller"], r["scenario"]) for r in episodes} >= {
-        ("PD", "kang_regulation"),
+        ("PD", "kang_regulation_20deg"),
         ("PID", "m220_regulation"),
     }
     assert (tmp_path / "leaderboard.md").read_text().startswith("# frictiongym leaderboard")
     for png in ("scores.png", "aggregate_iqm.png", "performance_profile.png"):
         assert (tmp_path / png).stat().st_size > 5000
-    assert (tmp_path / "response_kang_regulation.png").stat().st_size > 5000
+    assert (tmp_path / "response_kang_regulation_20deg.png").stat().st_size > 5000
 
 
 @pytest.mark.parametrize("suite", ["paper", "default", "test"])

@@ -17,7 +17,7 @@ from ..classical import PD, RDFC, Southward
 from ..evaluate import EpisodeResult, run_episode
 from . import Section, published_node, row, save_figure
 
-EPISODE = Episode("kang_regulation", 0, False)  # θ(0) = 20 deg, set-point 0, 20 ms, nominal plant
+EPISODE = Episode("kang_regulation_20deg", 0, False)  # θ(0) = 20 deg, set-point 0, 20 ms, nominal plant
 SOUTHWARD_PERIODS_MS = (5, 20, 40)
 DELTAS_DEG = (0.02, 0.04)
 
