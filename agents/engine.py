@@ -69,10 +69,12 @@ class Job:
         return (self.controller, self.scenario, str(self.seed), str(self.randomize))
 
 
-def plan(controllers: list[str], episodes: list[Episode]) -> tuple[list[Job], list[tuple[str, str, str]]]:
+def plan(
+    controllers: list[str], episodes: list[Episode], models: tuple[str, ...] = ()
+) -> tuple[list[Job], list[tuple[str, str, str]]]:
     """The jobs (episode-major, controllers in the given order) and the skipped (controller, scenario,
     reason) pairs of controllers not defined for a scenario."""
-    envs, made = EnvCache(), {name: registry.make(name) for name in controllers}
+    envs, made = EnvCache(), {name: registry.make(name, models) for name in controllers}
     jobs, skipped, seen = [], [], set()
     for e in episodes:
         for name, c in made.items():
@@ -115,12 +117,13 @@ def _init_worker() -> None:
         sys.modules["torch"].set_num_threads(1)
 
 
-def run_chunk(jobs: list[Job], prov: dict[str, str]) -> list[dict[str, Any]]:
-    """The rows of some jobs, in this process (controllers and envs cached per process)."""
+def run_chunk(jobs: list[Job], prov: dict[str, str], models: tuple[str, ...] = ()) -> list[dict[str, Any]]:
+    """The rows of some jobs, in this process (controllers and envs cached per process); `models`: the
+    saved-model folders the registry loads (registry.available)."""
     rows = []
     for job in jobs:
         if job.controller not in _CONTROLLERS:
-            _CONTROLLERS[job.controller] = registry.make(job.controller)
+            _CONTROLLERS[job.controller] = registry.make(job.controller, models)
         c = _CONTROLLERS[job.controller]
         r = run_episode(c, job.episode, envs=_ENVS)
         rows.append(
@@ -153,6 +156,7 @@ def run_jobs(
     workers: int,
     on_rows: Callable[[list[dict[str, Any]]], None],
     progress: bool = True,
+    models: tuple[str, ...] = (),
 ) -> None:
     """Run jobs (workers = 1: in this process) and hand each finished chunk's rows to on_rows."""
     prov = provenance()
@@ -160,7 +164,7 @@ def run_jobs(
     bar = tqdm(total=len(jobs), desc="episodes", unit="ep", disable=not progress)
     if workers <= 1 or len(todo) <= 1:
         for chunk in todo:
-            on_rows(run_chunk(chunk, prov))
+            on_rows(run_chunk(chunk, prov, models))
             bar.update(len(chunk))
         bar.close()
         return
@@ -168,7 +172,7 @@ def run_jobs(
     os.environ.update(dict.fromkeys(THREAD_VARS, "1"))  # inherited by the spawned workers
     try:
         with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_init_worker) as pool:
-            pending = {pool.submit(run_chunk, chunk, prov): len(chunk) for chunk in todo}
+            pending = {pool.submit(run_chunk, chunk, prov, models): len(chunk) for chunk in todo}
             while pending:
                 done, _ = wait(pending, return_when=FIRST_COMPLETED)
                 for f in done:
@@ -266,13 +270,14 @@ def evaluate_to(
     options: dict[str, Any],
     workers: int = 1,
     progress: bool = True,
+    models: tuple[str, ...] = (),
 ) -> tuple[list[dict[str, str]], list[tuple[str, str, str]]]:
     """Run every applicable (controller, episode) job not yet in DIR/episodes.csv; returns all rows (in
     canonical order) and the skipped (controller, scenario, reason) pairs."""
     store = EpisodesFile(out, options)
-    jobs, skipped = plan(controllers, episodes)
+    jobs, skipped = plan(controllers, episodes, models)
     done = store.done()
-    run_jobs([j for j in jobs if j.key() not in done], workers, store.append, progress)
+    run_jobs([j for j in jobs if j.key() not in done], workers, store.append, progress, models)
     return store.finish(jobs, main_metrics(episodes)), skipped
 
 

@@ -195,6 +195,7 @@ def plots(
     agg: list[dict],
     out: Path,
     randomize: dict[str, bool],
+    models: tuple[str, ...] = (),
 ) -> list[str]:
     """Normalised scores per scenario (strip plots), the aggregate IQM with intervals, the performance
     profile, and per scenario the time responses of its best and worst episodes (by the main metric)."""
@@ -246,7 +247,7 @@ def plots(
         if not rs:
             continue
         vals = [r.metrics[main] for r in rs]
-        best, worst = with_logs([rs[int(np.argmin(vals))], rs[int(np.argmax(vals))]], randomize[sc])
+        best, worst = with_logs([rs[int(np.argmin(vals))], rs[int(np.argmax(vals))]], randomize[sc], models)
         fig, ax = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
         for r, style in ((best, "-"), (worst, "--")):
             g = r.log
@@ -274,11 +275,15 @@ def result_of(row: dict[str, Any]) -> EpisodeResult:
     )
 
 
-def with_logs(picked: list[EpisodeResult], randomize: bool) -> list[EpisodeResult]:
+def with_logs(
+    picked: list[EpisodeResult], randomize: bool, models: tuple[str, ...] = ()
+) -> list[EpisodeResult]:
     """The same episodes re-run with their time logs (deterministic: the same seeds give the same runs)."""
     envs = EnvCache()
     return [
-        run_episode(registry.make(r.controller), Episode(r.scenario, r.seed, randomize), True, envs=envs)
+        run_episode(
+            registry.make(r.controller, models), Episode(r.scenario, r.seed, randomize), True, envs=envs
+        )
         for r in picked
     ]
 
@@ -290,11 +295,13 @@ def run(
     progress: bool = True,
     workers: int = 1,
     episodes: list[Episode] | None = None,
+    models: tuple[str, ...] = (),
 ) -> tuple[list[EpisodeResult], dict[str, list[dict]]]:
     """Evaluate (the suite, or the given episodes) with the Zero reference always included, and
     summarize. With out: results go to out/episodes.csv incrementally (a rerun resumes), then
     leaderboard.md, leaderboard.csv (the tables) and PNG plots, each written atomically."""
-    available = registry.available()
+    models = tuple(str(m) for m in models)
+    available = registry.available(models)
     names = controllers or list(available)
     unknown = [n for n in names if n not in available]
     if unknown:
@@ -302,15 +309,15 @@ def run(
     names = [REFERENCE, *(n for n in names if n != REFERENCE)]
     episodes = episodes if episodes is not None else load_suite(suite)
     if out is None:
-        jobs, skipped = engine.plan(names, episodes)
+        jobs, skipped = engine.plan(names, episodes, models)
         rows: list[dict[str, Any]] = []
-        engine.run_jobs(jobs, workers, rows.extend, progress)
+        engine.run_jobs(jobs, workers, rows.extend, progress, models)
         rank = {j.key(): i for i, j in enumerate(jobs)}
         rows.sort(key=lambda r: rank[(r["controller"], r["scenario"], str(r["seed"]), str(r["randomize"]))])
         engine.attach_scores(rows, engine.main_metrics(episodes))
     else:
-        options = {"episodes": [asdict(e) for e in episodes], "controllers": names}
-        rows, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress)
+        options = {"episodes": [asdict(e) for e in episodes], "controllers": names, "models": list(models)}
+        rows, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models)
     for name, scenario, reason in skipped:
         if progress:
             print(f"skipped {name} on {scenario}: {reason}")
@@ -319,7 +326,7 @@ def run(
     table, agg = summarize(results, scenarios), aggregate(results)
     if out is not None:
         write_table_csv(table, scenarios, out / "leaderboard.csv")
-        figs = plots(results, table, agg, out, {e.scenario: e.randomize for e in episodes})
+        figs = plots(results, table, agg, out, {e.scenario: e.randomize for e in episodes}, models)
         md = markdown(table, agg, suite, scenarios)
         _atomic_text(out / "leaderboard.md", md + "\n" + "".join(f"![{f}]({f})\n" for f in figs))
     return results, table

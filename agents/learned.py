@@ -3,6 +3,7 @@ with like: a stable-baselines3 policy acting on the env's observation."""
 
 from __future__ import annotations
 
+import hashlib
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -21,15 +22,28 @@ class SB3Policy(Controller):
 
     def __init__(self, model: Any, plants: tuple[str, ...] = (), name: str = "SB3"):
         self.model, self.plants, self.name = model, tuple(plants), name  # instance values shadow the class
+        self.model_hash = ""
 
     @classmethod
     def load(
         cls, path: str | Path, algo: str, plants: tuple[str, ...] = (), name: str | None = None
     ) -> SB3Policy:
-        """Load a saved model, e.g. SB3Policy.load("sac_kang.zip", "SAC", ("kang_robot",))."""
-        import stable_baselines3
+        """Load a saved model, e.g. SB3Policy.load("sac_kang.zip", "SAC", ("kang_robot",)); algo is a
+        stable-baselines3 or sb3-contrib class name. The file's SHA-256 is kept as its provenance."""
+        import importlib
 
-        return cls(getattr(stable_baselines3, algo).load(str(path)), plants, name or Path(path).stem)
+        for package in ("stable_baselines3", "sb3_contrib"):
+            try:
+                cls_ = getattr(importlib.import_module(package), algo, None)
+            except ImportError:
+                cls_ = None
+            if cls_ is not None:
+                break
+        else:
+            raise ValueError(f"algorithm {algo!r} is not a stable-baselines3 or sb3-contrib class")
+        policy = cls(cls_.load(str(path), device="cpu"), plants, name or Path(path).stem)
+        policy.model_hash = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        return policy
 
     def why_not(self, scenario: Scenario) -> str | None:
         want = tuple(self.model.observation_space.shape)
@@ -48,4 +62,4 @@ class SB3Policy(Controller):
         return np.asarray(action, dtype=np.float32).reshape(1)
 
     def params(self) -> dict[str, Any]:
-        return {"algorithm": type(self.model).__name__}
+        return {"algorithm": type(self.model).__name__, "model_sha256": self.model_hash}

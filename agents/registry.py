@@ -1,17 +1,26 @@
 """Controllers by name: the built-in set, the `frictiongym.controllers` entry-point group (a package
 registers `name = "module:factory"`, the factory taking no arguments and returning a Controller), and
-saved models (model directories with a manifest, added by the caller)."""
+saved models: a folder with a manifest.yaml (name, algorithm, model file), or a folder of such folders.
+
+    manifest.yaml:  name: SAC-kang        # the leaderboard's name for it
+                    algorithm: SAC        # a stable-baselines3 or sb3-contrib class
+                    model: model.zip      # relative to the manifest (default model.zip)
+                    ...                   # anything else (training record) is kept, not read here
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from functools import partial
 from importlib.metadata import entry_points
+from pathlib import Path
 
 from .base import Controller, Zero
 from .classical import PD, PID, RDFC, CoulombViscousFF, LuGreObserver, Southward, StateFeedback
+from .learned import SB3Policy
 
 ENTRY_POINT_GROUP = "frictiongym.controllers"
+MANIFEST = "manifest.yaml"
 
 BUILTIN: dict[str, Callable[[], Controller]] = {
     "Zero": Zero,
@@ -27,20 +36,52 @@ BUILTIN: dict[str, Callable[[], Controller]] = {
 }
 
 
-def available() -> dict[str, Callable[[], Controller]]:
-    """Every controller factory by name: built-ins, then the entry-point group's (which may not shadow
-    a built-in name)."""
-    out = dict(BUILTIN)
-    for ep in entry_points(group=ENTRY_POINT_GROUP):
-        if ep.name in out:
-            raise ValueError(f"entry point {ep.name!r} ({ep.value}) shadows a built-in controller")
-        out[ep.name] = ep.load()
+def model_dirs(paths: Sequence[str | Path]) -> list[Path]:
+    """The model folders under the given paths (a path is a model folder, or holds model folders)."""
+    out = []
+    for p in map(Path, paths):
+        if (p / MANIFEST).is_file():
+            found = [p]
+        else:
+            found = sorted(d for d in p.iterdir() if (d / MANIFEST).is_file()) if p.is_dir() else []
+        if not found:
+            raise ValueError(f"--models {p}: no {MANIFEST} there or in its sub-folders")
+        out += found
     return out
 
 
-def make(name: str) -> Controller:
+def model_factory(folder: Path) -> tuple[str, Callable[[], Controller]]:
+    """(name, factory) of a saved model's folder, checked against its manifest."""
+    from frictiongym.envs.config import Node, load_yaml
+
+    m = Node(load_yaml(folder / MANIFEST), str(folder / MANIFEST))
+    name, algo = m["name"], m["algorithm"]
+    path = folder / m.get("model", "model.zip")
+    if not isinstance(name, str) or not name or not isinstance(algo, str):
+        raise ValueError(f"{folder / MANIFEST}: name and algorithm must be non-empty strings")
+    if not path.is_file():
+        raise ValueError(f"{folder / MANIFEST}: model file {path.name} not found")
+    return name, partial(SB3Policy.load, path, algo, name=name)
+
+
+def available(models: Sequence[str | Path] = ()) -> dict[str, Callable[[], Controller]]:
+    """Every controller factory by name: built-ins, the entry-point group's, then the saved models under
+    `models` (none may shadow an earlier name)."""
+    out = dict(BUILTIN)
+    extra = [(ep.name, ep.value, ep.load) for ep in entry_points(group=ENTRY_POINT_GROUP)]
+    for folder in model_dirs(models):
+        name, factory = model_factory(folder)
+        extra.append((name, str(folder), lambda f=factory: f))
+    for name, where, load in extra:
+        if name in out:
+            raise ValueError(f"controller {name!r} ({where}) shadows another controller of that name")
+        out[name] = load()
+    return out
+
+
+def make(name: str, models: Sequence[str | Path] = ()) -> Controller:
     """A new controller called name (unknown names are an error listing the available ones)."""
-    factories = available()
+    factories = available(models)
     if name not in factories:
         raise ValueError(f"unknown controllers [{name!r}]; available: {list(factories)}")
     return factories[name]()

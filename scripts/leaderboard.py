@@ -16,7 +16,7 @@ import sys
 import time
 from pathlib import Path
 
-from frictiongym.agents import leaderboard, registry
+from frictiongym.agents import leaderboard
 from frictiongym.agents.engine import RunMismatch
 from frictiongym.envs.scenario import scenario_names
 from frictiongym.envs.suites import Episode, suite_names
@@ -45,7 +45,8 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--seeds", type=seed_range, help="seeds of the inline suite, e.g. 5000-5049")
     ap.add_argument("--randomize", action="store_true", help="randomise the inline suite's episodes")
-    ap.add_argument("--controllers", nargs="+", choices=list(registry.available()), help="default: all")
+    ap.add_argument("--controllers", nargs="+", help="default: all (built-in, plug-ins and --models)")
+    ap.add_argument("--models", nargs="+", default=[], type=Path, help="saved-model folders (manifest.yaml)")
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     ap.add_argument("--out", type=Path, default=Path("out/leaderboard"))
     args = ap.parse_args(argv)
@@ -63,8 +64,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     t0 = time.perf_counter()
     try:
-        leaderboard.run(suite, args.controllers, args.out, workers=args.workers, episodes=episodes)
-    except RunMismatch as e:
+        leaderboard.run(
+            suite, args.controllers, args.out, workers=args.workers, episodes=episodes, models=args.models
+        )
+    except (RunMismatch, ValueError) as e:  # other options into --out; unknown controllers or bad models
         print(f"error: {e}", file=sys.stderr)
         return 2
     print((args.out / "leaderboard.md").read_text().split("\n![")[0])

@@ -1,5 +1,8 @@
 """The evaluation engine: jobs, serial == parallel, incremental and resumable results, applicability."""
 
+import csv
+import hashlib
+import json
 import shutil
 from importlib.metadata import EntryPoint
 
@@ -69,3 +72,31 @@ def test_entry_point_controllers_are_registered(monkeypatch):
     assert isinstance(registry.make("MyZero"), Zero)
     with pytest.raises(ValueError, match="unknown controllers"):
         registry.make("Nobody")
+
+
+def test_saved_model_is_an_entry_and_a_mismatched_scenario_is_skipped_with_its_reason(tmp_path):
+    from stable_baselines3 import PPO
+
+    from frictiongym.agents import leaderboard
+    from frictiongym.envs.servo_env import ServoEnv
+
+    folder = tmp_path / "models" / "ppo_kang"
+    folder.mkdir(parents=True)
+    PPO("MlpPolicy", ServoEnv("kang_regulation"), n_steps=64, seed=0, device="cpu").save(folder / "model.zip")
+    (folder / "manifest.yaml").write_text("name: PPO-kang\nalgorithm: PPO\nmodel: model.zip\n")
+    episodes = [Episode("kang_regulation", 5, True), Episode("m220_reversal_tracking", 5, True)]
+    out = tmp_path / "lb"
+    leaderboard.run("inline", ["PD", "PPO-kang"], out, False, 1, episodes, (tmp_path / "models",))
+    rows = list(csv.DictReader((out / "episodes.csv").read_text().splitlines()))
+    model_rows = [r for r in rows if r["controller"] == "PPO-kang"]
+    assert [r["scenario"] for r in model_rows] == ["kang_regulation"]  # 3 observations there, 9 on the M220
+    assert (
+        json.loads(model_rows[0]["controller_params"])["model_sha256"]
+        == hashlib.sha256((folder / "model.zip").read_bytes()).hexdigest()
+    )
+    _, skipped = engine.plan(["PPO-kang"], episodes, (str(tmp_path / "models"),))
+    assert skipped == [
+        ("PPO-kang", "m220_reversal_tracking", "the model observes shape (3,), the scenario gives (9,)")
+    ]
+    with pytest.raises(ValueError, match=r"no manifest\.yaml"):
+        registry.available((tmp_path / "lb",))
