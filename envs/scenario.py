@@ -26,7 +26,7 @@ from .plants import PlantSpec, plant_names, plant_spec
 from .plants.mjcf import friction_joints
 from .step import ObservationLayout, observation_layout
 
-REFERENCE_TYPES = ("constant", "steps", "sine", "triangle", "trapezoid")
+REFERENCE_TYPES = ("constant", "steps", "ramps", "sine", "triangle", "trapezoid")
 DEFAULTS = "_defaults"  # configs/scenarios/_defaults.yaml, which every scenario extends
 MAX_EPISODE_S = 3600.0  # one hour of simulated time
 MAX_EPISODE_STEPS = 1_000_000  # the per-episode logs hold 3 floats per step and simulation
@@ -42,7 +42,9 @@ def scenario_names() -> list[str]:
 class Reference:
     """Reference generator r(t) in the tracked sensor's unit (rad or V).
 
-    constant: value. steps: schedule of [t_start, value] (0 before the first). sine / triangle: offset +
+    constant: value. steps: schedule of [t_start, value] (0 before the first). ramps: offset plus the
+    integral of a piecewise-constant rate, schedule of [t_start, rate per s] (0 before the first).
+    sine / triangle: offset +
     amplitude·wave(2π·frequency_hz·t + phase_rad). trapezoid: point-to-point moves from offset; schedule
     of [t_start, target], each move with a trapezoidal velocity profile limited by max_velocity and
     max_acceleration (units per s, per s²), finished before the next starts.
@@ -91,6 +93,13 @@ class Reference:
             return values[np.searchsorted(starts, t + 1e-12, side="right")]
         if self.type == "trapezoid":
             return self._moves(t)
+        if self.type == "ramps":
+            starts = np.array([s for s, _ in self.schedule])
+            rates = np.array([r for _, r in self.schedule])
+            at_start = self.offset + np.concatenate([[0.0], np.cumsum(rates[:-1] * np.diff(starts))])
+            i = np.searchsorted(starts, t + 1e-12, side="right") - 1
+            ic = np.maximum(i, 0)
+            return np.where(i >= 0, at_start[ic] + rates[ic] * (t - starts[ic]), self.offset)
         w = 2.0 * np.pi * self.frequency_hz * t + self.phase_rad
         if self.type == "sine":
             return self.offset + self.amplitude * np.sin(w)
@@ -167,6 +176,8 @@ def _reference(r: Node) -> tuple[Reference, int]:
         return Reference("constant", value=r.number("value", default=0.0)), preview
     if kind == "steps":
         return Reference("steps", schedule=_schedule(r)), preview
+    if kind == "ramps":
+        return Reference("ramps", schedule=_schedule(r), offset=r.number("offset", default=0.0)), preview
     if kind == "trapezoid":
         ref = Reference(
             "trapezoid",
