@@ -30,6 +30,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from frictiongym.envs import env_id
 from frictiongym.envs.metrics import METRIC_NAMES
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
@@ -48,6 +49,7 @@ FIELDS = (
     *METRIC_NAMES,
     "score",
     "controller_params",
+    "env_id",
     "package_version",
     "git_commit",
 )
@@ -133,6 +135,7 @@ def run_chunk(jobs: list[Job], prov: dict[str, str], models: tuple[str, ...] = (
                 "diverged": r.diverged,
                 **r.metrics,
                 "controller_params": json.dumps(c.params(), sort_keys=True, default=_jsonable),
+                "env_id": env_id(_ENVS.scenario(job.episode).spec.name),
                 **prov,
             }
         )

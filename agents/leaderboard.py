@@ -56,9 +56,7 @@ def summarize(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> d
                     "diverged": sum(r.diverged for r in rs),
                     "main": stats.mean_ci([r.metrics[main] for r in rs]),
                     "score": stats.mean_ci([r.score for r in rs]),
-                    "secondary": {
-                        m: stats.mean_ci([r.metrics[m] for r in rs]) for m in scenarios[sc].secondary_metrics
-                    },
+                    "metrics": {m: stats.mean_ci([r.metrics[m] for r in rs]) for m in METRIC_NAMES},
                 }
             )
         rows.sort(key=lambda r: r["main"][0] if math.isfinite(r["main"][0]) else math.inf)
@@ -140,7 +138,7 @@ def markdown(
             div = f" ({r['diverged']} diverged)" if r["diverged"] else ""
             lines.append(
                 f"| {r['controller']} | {r['episodes']}{div} | {_fmt(r['main'])} | {_fmt(r['score'])} | "
-                + " | ".join(_fmt(r["secondary"][m]) for m in sec)
+                + " | ".join(_fmt(r["metrics"][m]) for m in sec)
                 + f" | {_vs(r)} |"
             )
     return "\n".join(lines) + "\n"
@@ -154,8 +152,8 @@ def _atomic_text(path: Path, text: str) -> None:
 
 
 def write_table_csv(table: dict[str, list[dict]], scenarios: dict[str, Scenario], path: Path) -> None:
-    """The tables: one row per (scenario, controller): main metric and score (mean, lo, hi), paired
-    comparison against the baseline."""
+    """The tables: one row per (scenario, controller): main metric and score (mean, lo, hi), the paired
+    comparison against the baseline, and every metric (mean, lo, hi)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(
@@ -163,6 +161,7 @@ def write_table_csv(table: dict[str, list[dict]], scenarios: dict[str, Scenario]
             *("scenario", "controller", "episodes", "diverged", "main_metric", "main_mean", "main_lo"),
             *("main_hi", "score_mean", "score_lo", "score_hi", "baseline", "diff_mean", "diff_lo"),
             *("diff_hi", "p_improve"),
+            *(f"{m}_{k}" for m in METRIC_NAMES for k in ("mean", "lo", "hi")),
         ]
     )
     for sc, rows in table.items():
@@ -173,6 +172,7 @@ def write_table_csv(table: dict[str, list[dict]], scenarios: dict[str, Scenario]
                 + [repr(x) for x in (*r["main"], *r["score"])]
                 + [r["baseline"]]
                 + [repr(v.get(k, math.nan)) for k in ("diff", "diff_lo", "diff_hi", "p_improve")]
+                + [repr(x) for m in METRIC_NAMES for x in r["metrics"][m]]
             )
     _atomic_text(path, buf.getvalue())
 

@@ -20,6 +20,16 @@ ENV_IDS = {  # id -> (single env, vector env over mujoco.batch for gym.make_vec)
     "frictiongym/KangRobot-v0": ("servo_env:KangRobotEnv", "vector:kang_robot_vector"),
 }
 
+
+def env_id(plant: str) -> str:
+    """The registered Gymnasium id (name and version) of a plant's env (its class's `plant`)."""
+    from gymnasium.envs.registration import load_env_creator
+
+    return next(
+        i for i, (entry, _) in ENV_IDS.items() if load_env_creator(f"frictiongym.envs.{entry}").plant == plant
+    )
+
+
 for _id, (_entry, _vector) in ENV_IDS.items():
     if _id not in gym.registry:
         gym.register(
