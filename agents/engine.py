@@ -259,9 +259,7 @@ class EpisodesFile:
 
     def finish(self, order: list[Job], main_metric: dict[str, str]) -> list[dict[str, str]]:
         """Fill in the normalised scores; rewrite the file in the jobs' order (atomically); the rows."""
-        rank = {j.key(): i for i, j in enumerate(order)}
-        self.rows.sort(key=lambda r: rank.get(tuple(r[k] for k in KEY), len(rank)))
-        attach_scores(self.rows, main_metric)
+        self.rows = canonical(self.rows, order, main_metric)
         _atomic_write(self.path, _csv_text(self.rows, header=True))
         return self.rows
 
@@ -287,6 +285,16 @@ def evaluate_to(
 def main_metrics(episodes: list[Episode]) -> dict[str, str]:
     """Each scenario's main metric (from its YAML)."""
     return {name: load_scenario(name).main_metric for name in {e.scenario for e in episodes}}
+
+
+def canonical(
+    rows: list[dict[str, Any]], order: list[Job], main_metric: dict[str, str]
+) -> list[dict[str, Any]]:
+    """The rows in the jobs' order with their normalised scores (as read back, or as run in memory)."""
+    rank = {j.key(): i for i, j in enumerate(order)}
+    rows = sorted(rows, key=lambda r: rank.get(tuple(str(r[k]) for k in KEY), len(rank)))
+    attach_scores(rows, main_metric)
+    return rows
 
 
 def attach_scores(rows: list[dict[str, Any]], main_metric: dict[str, str]) -> None:

@@ -35,6 +35,11 @@ def classical(name: str) -> bool:
     return name in registry.BUILTIN and name != REFERENCE
 
 
+def per_seed(rs: list[EpisodeResult], metric: str) -> dict[int, float]:
+    """{seed: metric} of one controller's episodes on one scenario."""
+    return {r.seed: r.metrics[metric] for r in rs}
+
+
 def summarize(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> dict[str, list[dict]]:
     """Per scenario, one row per controller, sorted by the mean main metric (see the module docstring)."""
     groups: dict[str, dict[str, list[EpisodeResult]]] = defaultdict(dict)
@@ -43,10 +48,6 @@ def summarize(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> d
     table = {}
     for sc, by_ctrl in groups.items():
         main = scenarios[sc].main_metric
-
-        def per_seed(rs: list[EpisodeResult], metric: str) -> dict[int, float]:
-            return {r.seed: r.metrics[metric] for r in rs}
-
         rows = []
         for name, rs in by_ctrl.items():
             rows.append(
@@ -194,6 +195,7 @@ def plots(
     table: dict[str, list[dict]],
     agg: list[dict],
     out: Path,
+    scenarios: dict[str, Scenario],
     randomize: dict[str, bool],
     models: tuple[str, ...] = (),
 ) -> list[str]:
@@ -242,7 +244,7 @@ def plots(
     names.append(_save_png(fig, out / "performance_profile.png"))
 
     for sc in scs:
-        main = load_scenario(sc).main_metric
+        main = scenarios[sc].main_metric
         rs = [r for r in results if r.scenario == sc and math.isfinite(r.metrics[main])]
         if not rs:
             continue
@@ -312,9 +314,7 @@ def run(
         jobs, skipped = engine.plan(names, episodes, models)
         rows: list[dict[str, Any]] = []
         engine.run_jobs(jobs, workers, rows.extend, progress, models)
-        rank = {j.key(): i for i, j in enumerate(jobs)}
-        rows.sort(key=lambda r: rank[(r["controller"], r["scenario"], str(r["seed"]), str(r["randomize"]))])
-        engine.attach_scores(rows, engine.main_metrics(episodes))
+        rows = engine.canonical(rows, jobs, engine.main_metrics(episodes))
     else:
         options = {"episodes": [asdict(e) for e in episodes], "controllers": names, "models": list(models)}
         rows, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models)
@@ -326,7 +326,7 @@ def run(
     table, agg = summarize(results, scenarios), aggregate(results)
     if out is not None:
         write_table_csv(table, scenarios, out / "leaderboard.csv")
-        figs = plots(results, table, agg, out, {e.scenario: e.randomize for e in episodes}, models)
+        figs = plots(results, table, agg, out, scenarios, {e.scenario: e.randomize for e in episodes}, models)
         md = markdown(table, agg, suite, scenarios)
         _atomic_text(out / "leaderboard.md", md + "\n" + "".join(f"![{f}]({f})\n" for f in figs))
     return results, table

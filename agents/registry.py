@@ -11,7 +11,7 @@ saved models: a folder with a manifest.yaml (name, algorithm, model file), or a 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from functools import partial
+from functools import cache, partial
 from importlib.metadata import entry_points
 from pathlib import Path
 
@@ -66,7 +66,12 @@ def model_factory(folder: Path) -> tuple[str, Callable[[], Controller]]:
 
 def available(models: Sequence[str | Path] = ()) -> dict[str, Callable[[], Controller]]:
     """Every controller factory by name: built-ins, the entry-point group's, then the saved models under
-    `models` (none may shadow an earlier name)."""
+    `models` (none may shadow an earlier name). Built once per set of model folders and process."""
+    return dict(_available(tuple(str(m) for m in models)))
+
+
+@cache
+def _available(models: tuple[str, ...]) -> dict[str, Callable[[], Controller]]:
     out = dict(BUILTIN)
     extra = [(ep.name, ep.value, ep.load) for ep in entry_points(group=ENTRY_POINT_GROUP)]
     for folder in model_dirs(models):
@@ -81,7 +86,7 @@ def available(models: Sequence[str | Path] = ()) -> dict[str, Callable[[], Contr
 
 def make(name: str, models: Sequence[str | Path] = ()) -> Controller:
     """A new controller called name (unknown names are an error listing the available ones)."""
-    factories = available(models)
+    factories = _available(tuple(str(m) for m in models))
     if name not in factories:
         raise ValueError(f"unknown controllers [{name!r}]; available: {list(factories)}")
     return factories[name]()

@@ -6,6 +6,7 @@ vectorization_mode="vector_entry_point") gives the batched ServoVectorEnv.
 """
 
 import logging
+from functools import cache
 
 import gymnasium as gym
 import mujoco
@@ -21,6 +22,7 @@ ENV_IDS = {  # id -> (single env, vector env over mujoco.batch for gym.make_vec)
 }
 
 
+@cache
 def env_id(plant: str) -> str:
     """The registered Gymnasium id (name and version) of a plant's env (its class's `plant`)."""
     from gymnasium.envs.registration import load_env_creator

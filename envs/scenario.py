@@ -42,12 +42,13 @@ def scenario_names() -> list[str]:
 class Reference:
     """Reference generator r(t) in the tracked sensor's unit (rad or V).
 
-    constant: value. steps: schedule of [t_start, value] (0 before the first). ramps: offset plus the
-    integral of a piecewise-constant rate, schedule of [t_start, rate per s] (0 before the first).
-    sine / triangle: offset +
-    amplitude·wave(2π·frequency_hz·t + phase_rad). trapezoid: point-to-point moves from offset; schedule
-    of [t_start, target], each move with a trapezoidal velocity profile limited by max_velocity and
-    max_acceleration (units per s, per s²), finished before the next starts.
+    - constant: value.
+    - steps: schedule of [t_start, value] (0 before the first).
+    - ramps: offset plus the integral of a piecewise-constant rate, schedule of [t_start, rate per s].
+    - sine, triangle: offset + amplitude·wave(2π·frequency_hz·t + phase_rad).
+    - trapezoid: point-to-point moves from offset, schedule of [t_start, target], each with a trapezoidal
+      velocity profile limited by max_velocity and max_acceleration (units per s, per s²), finished
+      before the next starts.
     """
 
     type: str

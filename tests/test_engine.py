@@ -69,9 +69,11 @@ def test_rows_carry_metrics_and_provenance(serial):
 def test_entry_point_controllers_are_registered(monkeypatch):
     ep = EntryPoint(name="MyZero", value="frictiongym.agents.base:Zero", group=registry.ENTRY_POINT_GROUP)
     monkeypatch.setattr(registry, "entry_points", lambda group: [ep] if group == ep.group else [])
+    registry._available.cache_clear()  # the registry is built once per process; this test changes it
     assert isinstance(registry.make("MyZero"), Zero)
     with pytest.raises(ValueError, match="unknown controllers"):
         registry.make("Nobody")
+    registry._available.cache_clear()
 
 
 def test_saved_model_is_an_entry_and_a_mismatched_scenario_is_skipped_with_its_reason(tmp_path):
