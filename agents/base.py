@@ -56,6 +56,11 @@ class Controller(ABC):
         """Hardware the controller brings into the plant (e.g. an analog rate loop); default none."""
         return {}
 
+    def observation_overrides(self) -> dict:
+        """Scenario `observation` settings the controller reads (history, privileged); default none. They
+        change what the env reports, never the episode (its draws come from named streams)."""
+        return {}
+
     @abstractmethod
     def reset(self, ctx: EpisodeContext) -> None:
         """Prepare for an episode (design gains, clear states)."""

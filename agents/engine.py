@@ -1,5 +1,5 @@
-"""The evaluation engine: episodes are jobs (controller, scenario, seed, randomize), run serially or on a
-process pool, their rows written to DIR/episodes.csv as they finish.
+"""The evaluation engine: episodes are jobs (controller, scenario, seed, randomize, pinned params), run
+serially or on a process pool, their rows written to DIR/episodes.csv as they finish.
 
 - A worker builds each controller once and each env once per (scenario, controller hardware), and resets
   it per episode; every random quantity comes from the episode's seed, so a job's row is the same in any
@@ -41,7 +41,7 @@ from .stats import normalized_score
 
 CHUNK = 4  # episodes per task: small, so a killed run loses little and the pool stays balanced
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "MUJOCO_NUM_THREADS")
-KEY = ("controller", "scenario", "seed", "randomize")
+KEY = ("controller", "scenario", "seed", "randomize", "params")
 FIELDS = (
     *KEY,
     "return",
@@ -61,14 +61,21 @@ class Job:
     scenario: str
     seed: int
     randomize: bool
+    params: str = ""  # pinned parameters as sorted JSON ("" = none)
 
     @property
     def episode(self) -> Episode:
-        return Episode(self.scenario, self.seed, self.randomize)
+        pinned = tuple(sorted(json.loads(self.params).items())) if self.params else ()
+        return Episode(self.scenario, self.seed, self.randomize, pinned)
 
-    def key(self) -> tuple[str, str, str, str]:
+    def key(self) -> tuple[str, ...]:
         """The job's identity as it reads back from the CSV (all strings)."""
-        return (self.controller, self.scenario, str(self.seed), str(self.randomize))
+        return (self.controller, self.scenario, str(self.seed), str(self.randomize), self.params)
+
+
+def params_text(e: Episode) -> str:
+    """An episode's pinned parameters as the CSV holds them: sorted JSON, or "" for none."""
+    return json.dumps(dict(e.params), sort_keys=True) if e.params else ""
 
 
 def plan(
@@ -82,7 +89,7 @@ def plan(
         for name, c in made.items():
             reason = c.why_not(envs.scenario(e))
             if reason is None:
-                jobs.append(Job(name, e.scenario, e.seed, e.randomize))
+                jobs.append(Job(name, e.scenario, e.seed, e.randomize, params_text(e)))
             elif (name, e.scenario) not in seen:
                 seen.add((name, e.scenario))
                 skipped.append((name, e.scenario, reason))
@@ -300,11 +307,11 @@ def canonical(
 def attach_scores(rows: list[dict[str, Any]], main_metric: dict[str, str]) -> None:
     """row["score"] = 1 - m / m_Zero with m the scenario's main metric and m_Zero that of the Zero
     controller on the same episode (nan where Zero did not run)."""
-    zero = {
-        (r["scenario"], str(r["seed"]), str(r["randomize"])): float(r[main_metric[r["scenario"]]])
-        for r in rows
-        if r["controller"] == "Zero"
-    }
+
+    def episode(r: dict[str, Any]) -> tuple[str, ...]:
+        return (r["scenario"], str(r["seed"]), str(r["randomize"]), r["params"])
+
+    zero = {episode(r): float(r[main_metric[r["scenario"]]]) for r in rows if r["controller"] == "Zero"}
     for r in rows:
-        m_zero = zero.get((r["scenario"], str(r["seed"]), str(r["randomize"])), math.nan)
+        m_zero = zero.get(episode(r), math.nan)
         r["score"] = normalized_score(float(r[main_metric[r["scenario"]]]), m_zero)  # written with repr

@@ -58,17 +58,30 @@ class EnvCache:
         return self._scenarios[key]
 
     def env(self, controller: Controller, episode: Episode, **env_kwargs: Any) -> ServoEnv:
-        """The env for this controller on this episode's scenario, with the hardware it brings."""
-        hw = controller.plant_overrides(self.scenario(episode, **env_kwargs))
-        key = json.dumps([episode.scenario, episode.randomize, hw, env_kwargs], sort_keys=True, default=str)
+        """The env for this controller on this episode's scenario, with the hardware it brings and the
+        observation it reads."""
+        kw = dict(env_kwargs)
+        overrides = controller_overrides(
+            controller, self.scenario(episode, **env_kwargs), kw.pop("overrides", None)
+        )
+        key = json.dumps([episode.scenario, episode.randomize, overrides, kw], sort_keys=True, default=str)
         if key not in self._envs:
-            kw = dict(env_kwargs)
-            user = dict(kw.pop("overrides", None) or {})
-            overrides = {**user, "plant_overrides": {**user.get("plant_overrides", {}), **hw}} if hw else user
             self._envs[key] = ServoEnv(
-                episode.scenario, randomize=episode.randomize, overrides=overrides or None, **kw
+                episode.scenario, randomize=episode.randomize, overrides=overrides, **kw
             )
         return self._envs[key]
+
+
+def controller_overrides(controller: Controller, scenario: Scenario, user: dict | None) -> dict | None:
+    """The scenario overrides for running `controller`: the user's, plus the hardware the controller brings
+    (plant_overrides) and the observation blocks it reads (observation_overrides)."""
+    out = dict(user or {})
+    hw, obs = controller.plant_overrides(scenario), controller.observation_overrides()
+    if hw:
+        out["plant_overrides"] = {**out.get("plant_overrides", {}), **hw}
+    if obs:
+        out["observation"] = {**out.get("observation", {}), **obs}
+    return out or None
 
 
 def run_episode(
@@ -85,7 +98,7 @@ def run_episode(
     env = (envs or EnvCache()).env(controller, episode, **env_kwargs)
     sc = env.scenario  # its spec holds the nominal (document) plant; the episode's draw is hidden
     know = {**knowledge_defaults(), **(knowledge or {})}
-    obs, _ = env.reset(seed=episode.seed)
+    obs, _ = env.reset(seed=episode.seed, options=episode.options())
     controller.reset(EpisodeContext(sc, sc.spec, know))
     total, done, info = 0.0, False, {}
     while not done:

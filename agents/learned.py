@@ -1,9 +1,19 @@
 """Learned controllers behind the same interface as the classical ones, so the leaderboard compares like
-with like: a stable-baselines3 policy acting on the env's observation."""
+with like: a stable-baselines3 policy acting on the env's observation, optionally as a residual over a
+classical base controller and with frozen observation-normalisation statistics.
+
+The model's input is the env's observation (with the history / privileged blocks the model was trained
+with, which the controller asks the env for) followed, in residual mode, by the base controller's action.
+`policy_observation` and `residual_action` are the one implementation of that input and of the combined
+action, used by the training wrapper (agents/training.py) and by SB3Policy alike.
+"""
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import importlib
+import pickle
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -14,52 +24,165 @@ from frictiongym.envs.scenario import Scenario
 from .base import Controller, EpisodeContext
 
 
+@dataclasses.dataclass(frozen=True)
+class PolicyInputs:
+    """What a learned controller observes beyond the scenario's own observation.
+
+    history: past (readings, action) samples the env appends (a delay needs a memory).
+    privileged: the env appends ground truth (true output, friction, bristle force); only the critic reads
+        it (asymmetric actor-critic, agents/training.py), the actor's features drop it.
+    base_action: the residual's base controller action is appended (residual mode).
+    """
+
+    history: int = 0
+    privileged: bool = False
+    base_action: bool = False
+
+    def observation_overrides(self) -> dict[str, Any]:
+        """The scenario `observation` settings the env must use for this model."""
+        return {"history": self.history, "privileged": self.privileged}
+
+    def size(self, scenario: Scenario) -> int:
+        """Length of the model's input on this scenario."""
+        sc = dataclasses.replace(scenario, history=self.history, privileged=self.privileged)
+        return sc.layout.size + int(self.base_action)
+
+    def actor_indices(self, scenario: Scenario) -> list[int]:
+        """Indices of the model input the actor may read: all but the privileged block."""
+        sc = dataclasses.replace(scenario, history=self.history, privileged=self.privileged)
+        hidden = range(sc.layout.size)[sc.layout.slice("privileged")]
+        return [i for i in range(self.size(scenario)) if i not in hidden]
+
+
+def policy_observation(obs: np.ndarray, base_action: np.ndarray | None) -> np.ndarray:
+    """The model's input: the env's observation, then the base action in residual mode (float32)."""
+    if base_action is None:
+        return obs
+    return np.concatenate([obs, np.asarray(base_action, dtype=np.float32).reshape(1)])
+
+
+def residual_action(base_action: np.ndarray, residual: np.ndarray, alpha: float) -> np.ndarray:
+    """u = clip(u_base + α·u_res, -1, 1): the residual has authority α of the full command range."""
+    u = np.asarray(base_action, dtype=np.float64).reshape(1) + alpha * np.asarray(residual).reshape(1)
+    return np.clip(u, -1.0, 1.0).astype(np.float32)
+
+
+def algorithm_class(algo: str) -> Any:
+    """The stable-baselines3 or sb3-contrib class called algo (e.g. "SAC", "TQC", "RecurrentPPO")."""
+    for package in ("stable_baselines3", "sb3_contrib"):
+        try:
+            cls_ = getattr(importlib.import_module(package), algo, None)
+        except ImportError:
+            cls_ = None
+        if cls_ is not None:
+            return cls_
+    raise ValueError(
+        f"algorithm {algo!r} is not a stable-baselines3 or sb3-contrib class "
+        "(sb3-contrib algorithms need `pip install -e .[rl]`)"
+    )
+
+
+def sha256(path: str | Path) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
 class SB3Policy(Controller):
-    """A trained SB3 model (any algorithm with predict), deterministic. It applies to a scenario whose
-    observation has the model's shape and, if `plants` is given, whose plant is one of them."""
+    """A trained SB3 model (any algorithm with predict), deterministic.
+
+    With `base` it is a residual: u = clip(u_base + α·π(obs, u_base), -1, 1), and it brings the base's
+    hardware (plant_overrides). `normalizer` is a frozen VecNormalize (its observation statistics are
+    applied, never updated). A recurrent policy (RecurrentPPO) keeps its state over the episode.
+    """
 
     name: ClassVar[str] = "SB3"
 
-    def __init__(self, model: Any, plants: tuple[str, ...] = (), name: str = "SB3"):
+    def __init__(
+        self,
+        model: Any,
+        plants: tuple[str, ...] = (),
+        name: str = "SB3",
+        *,
+        inputs: PolicyInputs = PolicyInputs(),
+        base: Controller | None = None,
+        alpha: float = 1.0,
+        normalizer: Any = None,
+    ):
         self.model, self.plants, self.name = model, tuple(plants), name  # instance values shadow the class
-        self.model_hash = ""
+        self.inputs, self.base, self.alpha, self.normalizer = inputs, base, float(alpha), normalizer
+        if inputs.base_action != (base is not None):
+            raise ValueError(
+                "a residual policy (base controller given) observes the base action, and only it"
+            )
+        if normalizer is not None:
+            normalizer.training = False  # frozen statistics at evaluation
+        self.recurrent = hasattr(model.policy, "lstm_actor")
+        self.hashes: dict[str, str] = {}
 
     @classmethod
     def load(
-        cls, path: str | Path, algo: str, plants: tuple[str, ...] = (), name: str | None = None
+        cls,
+        path: str | Path,
+        algo: str,
+        plants: tuple[str, ...] = (),
+        name: str | None = None,
+        normalizer: str | Path | None = None,
+        **kw: Any,
     ) -> SB3Policy:
         """Load a saved model, e.g. SB3Policy.load("sac_kang.zip", "SAC", ("kang_robot",)); algo is a
-        stable-baselines3 or sb3-contrib class name. The file's SHA-256 is kept as its provenance."""
-        import importlib
-
-        for package in ("stable_baselines3", "sb3_contrib"):
-            try:
-                cls_ = getattr(importlib.import_module(package), algo, None)
-            except ImportError:
-                cls_ = None
-            if cls_ is not None:
-                break
-        else:
-            raise ValueError(f"algorithm {algo!r} is not a stable-baselines3 or sb3-contrib class")
-        policy = cls(cls_.load(str(path), device="cpu"), plants, name or Path(path).stem)
-        policy.model_hash = hashlib.sha256(Path(path).read_bytes()).hexdigest()
+        stable-baselines3 or sb3-contrib class name, normalizer a saved VecNormalize (pickle). The files'
+        SHA-256 are kept as provenance."""
+        model = algorithm_class(algo).load(str(path), device="cpu")
+        norm = None
+        if normalizer is not None:
+            with open(normalizer, "rb") as f:
+                norm = pickle.load(f)
+        policy = cls(model, plants, name or Path(path).stem, normalizer=norm, **kw)
+        policy.hashes = {"model_sha256": sha256(path)}
+        if normalizer is not None:
+            policy.hashes["normalizer_sha256"] = sha256(normalizer)
         return policy
 
     def why_not(self, scenario: Scenario) -> str | None:
+        if self.base is not None and (reason := self.base.why_not(scenario)) is not None:
+            return f"base controller {self.base.name}: {reason}"
         want = tuple(self.model.observation_space.shape)
-        got = (scenario.layout.size,)
+        got = (self.inputs.size(scenario),)
         if got != want:
             return f"the model observes shape {want}, the scenario gives {got}"
         if self.plants and scenario.spec.name not in self.plants:
             return f"trained for plants {list(self.plants)}, the scenario's plant is {scenario.spec.name}"
         return None
 
+    def plant_overrides(self, scenario: Scenario) -> dict:
+        return self.base.plant_overrides(scenario) if self.base is not None else {}
+
+    def observation_overrides(self) -> dict:
+        return self.inputs.observation_overrides()
+
     def reset(self, ctx: EpisodeContext) -> None:
         self.ctx = ctx
+        if self.base is not None:
+            self.base.reset(ctx)
+        self.state, self.start = None, np.ones(1, dtype=bool)
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        action, _ = self.model.predict(obs, deterministic=True)
-        return np.asarray(action, dtype=np.float32).reshape(1)
+        ub = self.base.act(obs) if self.base is not None else None
+        x = policy_observation(obs, ub)
+        if self.normalizer is not None:
+            x = self.normalizer.normalize_obs(x).astype(np.float32)
+        if self.recurrent:
+            a, self.state = self.model.predict(
+                x, state=self.state, episode_start=self.start, deterministic=True
+            )
+            self.start = np.zeros(1, dtype=bool)
+        else:
+            a, _ = self.model.predict(x, deterministic=True)
+        if ub is None:
+            return np.clip(np.asarray(a, dtype=np.float32).reshape(1), -1.0, 1.0)
+        return residual_action(ub, a, self.alpha)
 
     def params(self) -> dict[str, Any]:
-        return {"algorithm": type(self.model).__name__, "model_sha256": self.model_hash}
+        out: dict[str, Any] = {"algorithm": type(self.model).__name__, **self.hashes}
+        if self.base is not None:
+            out |= {"base": self.base.name, "alpha": self.alpha}
+        return out

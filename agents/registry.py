@@ -2,10 +2,15 @@
 registers `name = "module:factory"`, the factory taking no arguments and returning a Controller), and
 saved models: a folder with a manifest.yaml (name, algorithm, model file), or a folder of such folders.
 
-    manifest.yaml:  name: SAC-kang        # the leaderboard's name for it
-                    algorithm: SAC        # a stable-baselines3 or sb3-contrib class
-                    model: model.zip      # relative to the manifest (default model.zip)
-                    ...                   # anything else (training record) is kept, not read here
+    manifest.yaml:  name: SAC-kang          # the leaderboard's name for it
+                    algorithm: SAC          # a stable-baselines3 or sb3-contrib class
+                    model: model.zip        # relative to the manifest (default model.zip)
+                    normalizer: vecnormalize.pkl   # optional: frozen VecNormalize statistics
+                    plants: [kang_robot]    # optional: plants it applies to
+                    base_controller: RDFC   # optional: residual over this built-in controller...
+                    alpha: 0.05             # ...with this authority (default 1)
+                    inputs: {history: 0, privileged: false, base_action: true}   # optional
+                    ...                     # anything else (training record) is kept, not read here
 """
 
 from __future__ import annotations
@@ -17,7 +22,7 @@ from pathlib import Path
 
 from .base import Controller, Zero
 from .classical import PD, PID, RDFC, CoulombViscousFF, LuGreObserver, Southward, StateFeedback
-from .learned import SB3Policy
+from .learned import PolicyInputs, SB3Policy
 
 ENTRY_POINT_GROUP = "frictiongym.controllers"
 MANIFEST = "manifest.yaml"
@@ -34,6 +39,16 @@ BUILTIN: dict[str, Callable[[], Controller]] = {
     "LuGreObserver": LuGreObserver,
     "CoulombViscousFF": CoulombViscousFF,
 }
+
+
+MODELS_DIR = Path(__file__).parent / "models"  # committed trained models, by group
+
+
+def committed_models(group: str) -> list[Path]:
+    """The committed model folders of a group (agents/models/<group>/*/manifest.yaml): `headline` (on the
+    default leaderboard) or `sim2real` (the friction-randomisation study's agents)."""
+    folder = MODELS_DIR / group
+    return sorted(d for d in folder.iterdir() if (d / MANIFEST).is_file()) if folder.is_dir() else []
 
 
 def model_dirs(paths: Sequence[str | Path]) -> list[Path]:
@@ -56,12 +71,38 @@ def model_factory(folder: Path) -> tuple[str, Callable[[], Controller]]:
 
     m = Node(load_yaml(folder / MANIFEST), str(folder / MANIFEST))
     name, algo = m["name"], m["algorithm"]
-    path = folder / m.get("model", "model.zip")
     if not isinstance(name, str) or not name or not isinstance(algo, str):
         raise ValueError(f"{folder / MANIFEST}: name and algorithm must be non-empty strings")
-    if not path.is_file():
-        raise ValueError(f"{folder / MANIFEST}: model file {path.name} not found")
-    return name, partial(SB3Policy.load, path, algo, name=name)
+    files = {"model": m.get("model", "model.zip"), "normalizer": m.get("normalizer")}
+    for key, file in files.items():
+        if file is not None and not (folder / file).is_file():
+            raise ValueError(f"{folder / MANIFEST}: {key} file {file} not found")
+    base = m.get("base_controller")
+    if base is not None and base not in BUILTIN:
+        raise ValueError(f"{folder / MANIFEST}: base_controller {base!r} is not one of {sorted(BUILTIN)}")
+    i = m.section("inputs", optional=True)
+    inputs = PolicyInputs(
+        i.integer("history", 0, default=0),
+        i.boolean("privileged", default=False),
+        i.boolean("base_action", default=base is not None),
+    )
+    alpha = m.positive("alpha", 1.0, default=1.0)
+    plants = tuple(m.get("plants") or ())
+    norm = folder / files["normalizer"] if files["normalizer"] else None
+
+    def factory() -> Controller:
+        return SB3Policy.load(
+            folder / files["model"],
+            algo,
+            plants,
+            name,
+            normalizer=norm,
+            inputs=inputs,
+            base=BUILTIN[base]() if base is not None else None,
+            alpha=alpha,
+        )
+
+    return name, factory
 
 
 def available(models: Sequence[str | Path] = ()) -> dict[str, Callable[[], Controller]]:

@@ -14,9 +14,17 @@ FILE = "suites.yaml"
 
 @dataclass(frozen=True)
 class Episode:
+    """One episode: (scenario, seed, randomize), and optionally pinned parameters (randomization keys and
+    values, sorted) that replace the drawn ones (reset(options={"params": ...}): sim-to-real shifts)."""
+
     scenario: str
     seed: int
     randomize: bool
+    params: tuple[tuple[str, float], ...] = ()
+
+    def options(self) -> dict | None:
+        """The reset options of the episode."""
+        return {"params": dict(self.params)} if self.params else None
 
 
 def suite_names() -> list[str]:

@@ -1,0 +1,728 @@
+"""Training learned compensators with stable-baselines3 / sb3-contrib (scripts/train.py is the front end).
+
+A training config (configs/agents/<name>.yaml, rl-zoo style) gives `defaults` and per-scenario entries
+that override them; every key is checked (unknown keys, types, ranges: errors naming the file and field).
+One run = (config, scenario, seed) and writes a model folder the leaderboard loads (--models):
+
+    model.zip, vecnormalize.pkl   the model selected on the validation suite and its frozen statistics
+    manifest.yaml                 algorithm, scenario, base controller, α, hyper-parameters, seed, steps,
+                                  wall time, the exact command, package version, validation score
+    validation.csv, training_curve.png, tb/ (TensorBoard), checkpoint/ (for --resume)
+
+Rules it enforces: training episodes use seeds from TRAINING_SEEDS (disjoint from every suite); the model
+is selected on the `validation` suite only, by the scenario's main metric, among evaluations whose
+effort_rms is at most `max_effort_ratio` times the best classical baseline's on the same episodes (a
+compensator that chatters is not a result); one torch thread per process.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import dataclasses
+import inspect
+import io
+import json
+import math
+import os
+import pickle
+import shlex
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import yaml
+from gymnasium import spaces
+
+from frictiongym.envs.config import ConfigError, Node, load_yaml
+from frictiongym.envs.plants.spec import RANDOMIZATION_KEYS
+from frictiongym.envs.scenario import load_scenario
+from frictiongym.envs.servo_env import ServoEnv
+from frictiongym.envs.suites import load_suite
+
+from .base import Controller, EpisodeContext
+from .engine import provenance
+from .evaluate import EnvCache, controller_overrides, run_episode
+from .learned import PolicyInputs, SB3Policy, algorithm_class, policy_observation, residual_action
+from .settings import knowledge_defaults
+
+TRAINING_SEEDS = 10_000_000  # training episode seeds start here: run seed s, env i, episode k ->
+SEEDS_PER_RUN = 1_000_000  # TRAINING_SEEDS + s·SEEDS_PER_RUN + k·n_envs + i (no suite uses them)
+VALIDATION_SUITE = "validation"
+ALGORITHMS = ("SAC", "TD3", "PPO", "TQC", "RecurrentPPO")
+REWARD_TERMS = ("tracking", "effort", "smoothness")
+ACTIVATIONS = ("relu", "tanh", "elu", "leaky_relu")
+MODEL, NORMALIZER, MANIFEST = "model.zip", "vecnormalize.pkl", "manifest.yaml"
+
+
+# ------------------------------------------------------------------------------------------- config
+@dataclass(frozen=True)
+class RunConfig:
+    """One scenario's resolved training settings (defaults + the scenario's entry)."""
+
+    name: str  # leaderboard name prefix; the model is called f"{name}-s{seed}"
+    algorithm: str
+    scenario: str
+    total_timesteps: int
+    n_envs: int
+    randomize: bool
+    randomization: dict[str, tuple[float, float]]  # replaces the plant's ranges key by key
+    reward: dict[str, float]  # scenario reward weights replaced (tracking, effort, smoothness)
+    inputs: PolicyInputs
+    base: str | None  # registered controller name (residual mode) or None
+    alpha: float  # residual authority, fraction of the full command range
+    initial_std: float  # initial action std of the (residual) policy, in action units
+    normalize_observation: bool
+    normalize_reward: bool
+    eval_every_steps: int
+    eval_episodes: int  # the first n of the scenario's validation-suite episodes
+    max_effort_ratio: float  # selection: effort_rms <= ratio · best classical baseline's (validation)
+    max_wall_time_s: float  # the run stops (and says so in its manifest) after this wall time
+    hyperparams: dict[str, Any] = field(default_factory=dict)  # the algorithm's keyword arguments
+    source: str = ""  # the config file
+
+    def as_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["randomization"] = {k: list(v) for k, v in self.randomization.items()}
+        return d
+
+
+def config_names() -> list[str]:
+    from frictiongym.envs.config import preset_names
+
+    return preset_names("agents")
+
+
+def _deep_merge(base: Any, over: Any) -> Any:
+    """over merged into base, mappings key by key (new keys allowed: the checked reader rejects unknown
+    ones, naming them, so a typo is still an error)."""
+    if isinstance(base, dict) and isinstance(over, dict):
+        return {**base, **{k: _deep_merge(base.get(k), v) for k, v in over.items()}}
+    return over
+
+
+def _raw_config(path: str | Path, seen: tuple[str, ...] = ()) -> tuple[dict[str, Any], str]:
+    """A config file's mapping with its `extends:` chain merged in (the child's keys win)."""
+    from frictiongym.envs.config import preset_path
+
+    file = preset_path(path, "agents")
+    raw = load_yaml(file)
+    parent = raw.pop("extends", None) if isinstance(raw, dict) else None
+    if parent is None:
+        return raw, str(file)
+    if str(parent) in seen:
+        raise ConfigError("extends", f"cycle through {parent!r}", str(file))
+    base, _ = _raw_config(parent, (*seen, str(parent)))
+    return _deep_merge(base, raw), str(file)
+
+
+def load_config(path: str | Path, scenario: str | None = None) -> list[RunConfig]:
+    """The runs a training config asks for: every scenario in it, or just `scenario`. Each scenario's
+    settings are configs/agents/_defaults.yaml, then the file's `defaults`, then its scenario entry."""
+    from frictiongym.envs.config import configs_dir
+
+    raw, file = _raw_config(path)
+    top = Node(raw, file)
+    algo = top.choice("algorithm", ALGORITHMS)
+    name = top["name"]
+    if not isinstance(name, str) or not name.replace("-", "").replace("_", "").isalnum():
+        raise top.error("name", f"expected a name of letters, digits, '-' and '_', got {name!r}")
+    defaults = _deep_merge(load_yaml(configs_dir() / "agents" / "_defaults.yaml"), top.get("defaults") or {})
+    scenarios = top.section("scenarios")
+    keys = list(scenarios.keys())
+    if not keys:
+        raise top.error("scenarios", "expected at least one scenario")
+    if scenario is not None and scenario not in keys:
+        raise top.error("scenarios", f"no entry for scenario {scenario!r}; the file has {keys}")
+    out = []
+    for sc in keys:  # every entry is checked, the asked-for ones returned
+        merged = _deep_merge(defaults, scenarios[sc] or {})
+        cfg = _run_config(Node(merged, file, f"scenarios.{sc}."), name, algo, sc, file)
+        if scenario in (None, sc):
+            out.append(cfg)
+    scenarios.done()
+    top.done()
+    return out
+
+
+def _run_config(c: Node, name: str, algo: str, scenario: str, source: str) -> RunConfig:
+    load_scenario(scenario)  # an unknown scenario is an error naming the available ones
+    r = c.section("randomization")
+    ranges = {}
+    for key in list(r.keys()):
+        if key not in RANDOMIZATION_KEYS:
+            raise r.error(key, f"unknown randomization key; allowed: {sorted(RANDOMIZATION_KEYS)}")
+        ranges[key] = r.interval(key, *RANDOMIZATION_KEYS[key])
+    w = c.section("reward")
+    reward = {k: w.nonneg(k) for k in REWARD_TERMS if k in w}
+    o = c.section("observation")
+    res = c.section("residual")
+    base = res["base"]
+    if base is not None:
+        from .registry import BUILTIN
+
+        if base not in BUILTIN or base == "Zero":
+            raise res.error(
+                "base", f"unknown base controller {base!r}; allowed: {sorted(set(BUILTIN) - {'Zero'})}"
+            )
+    inputs = PolicyInputs(o.integer("history", 0, 64), o.boolean("privileged_critic"), base is not None)
+    hp = c.section("hyperparams")
+    hyper = {k: hp[k] for k in list(hp.keys())}
+    _check_hyperparams(algo, hyper, hp)
+    warmup = hyper.get("learning_starts", 100) > 0 and not (
+        hyper.get("use_sde") and hyper.get("use_sde_at_warmup")
+    )
+    if base is not None and algo in ("SAC", "TD3", "TQC") and warmup:
+        raise hp.error(
+            "learning_starts",
+            "a residual starts at zero output: set learning_starts: 0 (no uniform random actions at "
+            "full authority), or use_sde with use_sde_at_warmup",
+        )
+    if inputs.privileged and algo not in ("SAC", "TD3", "TQC"):
+        raise o.error(
+            "privileged_critic", f"asymmetric actor-critic is implemented for SAC, TD3 and TQC, not {algo}"
+        )
+    n = c.section("normalize")
+    v = c.section("validation")
+    cfg = RunConfig(
+        name=name,
+        algorithm=algo,
+        scenario=scenario,
+        total_timesteps=c.integer("total_timesteps", 1, 10**8),
+        n_envs=c.integer("n_envs", 1, 64),
+        randomize=c.boolean("randomize"),
+        randomization=ranges,
+        reward=reward,
+        inputs=inputs,
+        base=base,
+        alpha=res.positive("alpha", 1.0) if base is not None else 1.0,
+        initial_std=c.positive("initial_std", 1.0),
+        normalize_observation=n.boolean("observation"),
+        normalize_reward=n.boolean("reward"),
+        eval_every_steps=v.integer("every_steps", 1),
+        eval_episodes=v.integer("episodes", 1, 10_000),
+        max_effort_ratio=v.positive("max_effort_ratio"),
+        max_wall_time_s=c.positive("max_wall_time_s"),
+        hyperparams=hyper,
+        source=source,
+    )
+    if base is None:
+        res.get("alpha")  # read (unused without a base)
+    for node in (r, w, o, res, hp, n, v, c):
+        node.done()
+    return cfg
+
+
+def _check_hyperparams(algo: str, hyper: dict[str, Any], node: Node) -> None:
+    """Every hyper-parameter is a keyword of the algorithm's constructor (or one of ours, below)."""
+    ours = {"action_noise_std"}
+    params = set(inspect.signature(algorithm_class(algo).__init__).parameters) - {"self", "policy", "env"}
+    params -= {"seed", "device", "tensorboard_log", "verbose", "_init_setup_model"}
+    for key in hyper:
+        if key not in params | ours:
+            raise node.error(key, f"not a hyper-parameter of {algo}; allowed: {sorted(params | ours)}")
+    pk = hyper.get("policy_kwargs", {})
+    if not isinstance(pk, dict):
+        raise node.error("policy_kwargs", f"expected a mapping, got {pk!r}")
+    act = pk.get("activation_fn")
+    if act is not None and act not in ACTIVATIONS:
+        raise node.error("policy_kwargs.activation_fn", f"expected one of {list(ACTIVATIONS)}, got {act!r}")
+
+
+def scenario_overrides(cfg: RunConfig) -> dict[str, Any]:
+    """The scenario overrides of the run's training env (before the base controller's hardware)."""
+    out: dict[str, Any] = {}
+    if cfg.randomization:
+        out["plant_overrides"] = {"randomization": {k: list(v) for k, v in cfg.randomization.items()}}
+    if cfg.reward:
+        out["reward"] = dict(cfg.reward)
+    return out
+
+
+# ------------------------------------------------------------------------------------------- env
+class PolicyEnv(gym.Wrapper):
+    """The training env of one run: the scenario's env, in residual mode with the base controller in the
+    loop (u = clip(u_base + α·a)), its observation extended as the model sees it (policy_observation),
+    and its episodes on a fixed seed schedule: first_seed, first_seed + stride, ... (seeds passed to
+    reset are ignored, so a VecEnv's seeding cannot move training onto a suite's seeds)."""
+
+    def __init__(self, env: ServoEnv, base: Controller | None, alpha: float, first_seed: int, stride: int):
+        super().__init__(env)
+        self.base, self.alpha = base, alpha
+        self.first_seed, self.stride, self.episodes = first_seed, stride, 0
+        n = env.observation_space.shape[0] + int(base is not None)
+        self.observation_space = spaces.Box(-np.inf, np.inf, (n,), np.float32)
+        self.knowledge = knowledge_defaults()
+
+    def set_episodes(self, n: int) -> None:
+        """Continue the seed schedule after n episodes (--resume)."""
+        self.episodes = n
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        episode_seed = self.first_seed + self.episodes * self.stride
+        self.episodes += 1
+        obs, info = self.env.reset(seed=episode_seed, options=options)
+        return self._observe(obs, reset=True), info
+
+    def _observe(self, obs: np.ndarray, reset: bool = False) -> np.ndarray:
+        if self.base is None:
+            self.u_base = None
+            return obs
+        if reset:
+            sc = self.env.unwrapped.scenario
+            self.base.reset(EpisodeContext(sc, sc.spec, self.knowledge))
+        self.u_base = self.base.act(obs)
+        return policy_observation(obs, self.u_base)
+
+    def step(self, action: np.ndarray):
+        u = residual_action(self.u_base, action, self.alpha) if self.base is not None else action
+        obs, reward, term, trunc, info = self.env.step(np.asarray(u, dtype=np.float32).reshape(1))
+        return self._observe(obs), reward, term, trunc, info
+
+
+def make_env(cfg: RunConfig, seed: int, rank: int, monitor_dir: str | None = None) -> gym.Env:
+    """Env `rank` of a run: the scenario with the config's randomisation and reward, the base controller's
+    hardware and the model's observation blocks, wrapped in PolicyEnv and a Monitor."""
+    from stable_baselines3.common.monitor import Monitor
+
+    from .registry import make
+
+    base = make(cfg.base) if cfg.base is not None else None
+    probe = SB3PolicyShape(cfg.inputs, base)
+    sc = load_scenario(cfg.scenario, scenario_overrides(cfg) or None, randomize=cfg.randomize)
+    if base is not None and (reason := base.why_not(sc)) is not None:
+        raise ConfigError(
+            "residual.base", f"{cfg.base} does not apply to {cfg.scenario}: {reason}", cfg.source
+        )
+    env = ServoEnv(
+        cfg.scenario,
+        randomize=cfg.randomize,
+        overrides=controller_overrides(probe, sc, scenario_overrides(cfg)),
+    )
+    first = TRAINING_SEEDS + seed * SEEDS_PER_RUN + rank
+    wrapped = PolicyEnv(env, base, cfg.alpha, first, cfg.n_envs)
+    return Monitor(wrapped, os.path.join(monitor_dir, str(rank)) if monitor_dir else None)
+
+
+class SB3PolicyShape(Controller):
+    """What a learned controller brings into its env (the base's hardware, its observation blocks), without
+    a model: used to build the training env exactly as the evaluation builds it."""
+
+    name = "shape"
+
+    def __init__(self, inputs: PolicyInputs, base: Controller | None):
+        self.inputs, self.base = inputs, base
+
+    def plant_overrides(self, scenario):
+        return self.base.plant_overrides(scenario) if self.base is not None else {}
+
+    def observation_overrides(self) -> dict:
+        return self.inputs.observation_overrides()
+
+    def reset(self, ctx: EpisodeContext) -> None:
+        raise NotImplementedError("a shape does not act")
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        raise NotImplementedError("a shape does not act")
+
+
+# ------------------------------------------------------------------------------------------- model
+def build_model(cfg: RunConfig, venv: Any, seed: int, tb: str | None) -> Any:
+    """The algorithm with the config's hyper-parameters; in residual mode its policy starts at exactly
+    zero output with a small action std (zero_output)."""
+    import torch
+
+    hyper = dict(cfg.hyperparams)
+    pk = dict(hyper.pop("policy_kwargs", {}) or {})
+    if "activation_fn" in pk:
+        pk["activation_fn"] = {
+            "relu": torch.nn.ReLU,
+            "tanh": torch.nn.Tanh,
+            "elu": torch.nn.ELU,
+            "leaky_relu": torch.nn.LeakyReLU,
+        }[pk["activation_fn"]]
+    noise_std = hyper.pop("action_noise_std", None)
+    if noise_std is not None:
+        from stable_baselines3.common.noise import NormalActionNoise
+
+        hyper["action_noise"] = NormalActionNoise(np.zeros(1), np.full(1, float(noise_std)))
+    policy: Any = "MlpLstmPolicy" if cfg.algorithm == "RecurrentPPO" else "MlpPolicy"
+    if cfg.algorithm in ("PPO", "RecurrentPPO") or hyper.get("use_sde"):
+        pk.setdefault("log_std_init", math.log(cfg.initial_std))
+    if cfg.inputs.privileged:
+        from .asymmetric import asymmetric_policy
+
+        sc = load_scenario(cfg.scenario)
+        policy = asymmetric_policy(cfg.algorithm)
+        pk["actor_indices"] = cfg.inputs.actor_indices(sc)
+    model = algorithm_class(cfg.algorithm)(
+        policy, venv, seed=seed, device="cpu", verbose=0, tensorboard_log=tb, policy_kwargs=pk, **hyper
+    )
+    if cfg.base is not None:
+        zero_output(model, cfg.initial_std)
+    return model
+
+
+def zero_output(model: Any, std: float) -> None:
+    """Make the policy's mean action exactly 0 (last layer zeroed) and its std `std` (action units)."""
+    import torch
+
+    with torch.no_grad():
+        policy = model.policy
+        if hasattr(policy, "action_net"):  # PPO, RecurrentPPO
+            last = policy.action_net
+            policy.log_std.fill_(math.log(std))
+        elif hasattr(model, "actor_target"):  # TD3: mu = Sequential(..., Linear, Tanh)
+            last = [m for m in model.actor.mu if isinstance(m, torch.nn.Linear)][-1]
+        else:  # SAC, TQC: squashed Gaussian with a state-dependent log std
+            last = model.actor.mu
+            if isinstance(model.actor.log_std, torch.nn.Linear):
+                model.actor.log_std.weight.zero_()
+                model.actor.log_std.bias.fill_(math.log(std))
+        last.weight.zero_()
+        last.bias.zero_()
+        if hasattr(model, "actor_target"):
+            model.actor_target.load_state_dict(model.actor.state_dict())
+
+
+# ------------------------------------------------------------------------------------------- validation
+@dataclass
+class Baseline:
+    """The best classical controller of a scenario on the validation episodes (by its main metric)."""
+
+    name: str
+    main: float
+    effort_rms: float
+    limit_cycle_amp: float
+
+
+def validation_episodes(scenario: str) -> list:
+    return [e for e in load_suite(VALIDATION_SUITE) if e.scenario == scenario]
+
+
+def evaluate_controller(controller: Controller, episodes: list, envs: EnvCache) -> dict[str, float]:
+    """Means of every metric over the episodes, through the one evaluation loop."""
+    rows = [run_episode(controller, e, envs=envs).metrics for e in episodes]
+    return {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
+
+
+def classical_on(scenario: str, episodes: list, envs: EnvCache) -> dict[str, dict[str, float]]:
+    """Metric means of every applicable built-in controller (Zero included) on the episodes."""
+    from .registry import BUILTIN
+
+    out = {}
+    for name, factory in BUILTIN.items():
+        c = factory()
+        if c.applies_to(envs.scenario(episodes[0])):
+            out[name] = evaluate_controller(c, episodes, envs)
+    return out
+
+
+def best_classical(scenario: str, results: dict[str, dict[str, float]]) -> Baseline:
+    """The best classical baseline by the scenario's main metric (Zero is not a baseline)."""
+    main = load_scenario(scenario).main_metric
+    name = min((n for n in results if n != "Zero"), key=lambda n: results[n][main])
+    m = results[name]
+    return Baseline(name, m[main], m["effort_rms"], m["limit_cycle_amp"])
+
+
+def frozen_normalizer(venv: Any) -> Any:
+    """A detached copy of a VecNormalize (its pickle drops the wrapped env), frozen."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    if not isinstance(venv, VecNormalize):
+        return None
+    norm = pickle.loads(pickle.dumps(venv))
+    norm.training = False
+    return norm
+
+
+def _atomic(path: Path, write: Callable[[Path], None]) -> None:
+    """write(tmp) then rename over path: a reader never sees a partial file."""
+    tmp = path.with_name(f".{path.name}.tmp{path.suffix}")
+    write(tmp)
+    os.replace(tmp, path)
+
+
+def _save_model(model: Any, venv: Any, folder: Path) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    _atomic(folder / MODEL, lambda p: model.save(p))
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    if isinstance(venv, VecNormalize):  # its pickle leaves out the wrapped env
+        _atomic(folder / NORMALIZER, lambda p: p.write_bytes(pickle.dumps(venv)))
+
+
+def _callback_class():
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Validation(BaseCallback):
+        """Every `every` steps: evaluate the deterministic policy on the validation episodes through the
+        leaderboard's loop, log it, keep the best admissible model, write a checkpoint; stop at the wall
+        time limit."""
+
+        def __init__(self, run: TrainingRun):
+            super().__init__()
+            self.run = run
+
+        def _on_step(self) -> bool:
+            r = self.run
+            if self.num_timesteps >= r.next_eval:
+                r.next_eval += r.cfg.eval_every_steps
+                r.validate(self.model, self.logger)
+                r.checkpoint(self.model)
+            if r.elapsed() > r.cfg.max_wall_time_s:
+                r.stopped_early = True
+                return False
+            return True
+
+    return Validation
+
+
+class TrainingRun:
+    """One (config, scenario, seed) run into `out`, resumable from out/checkpoint."""
+
+    def __init__(self, cfg: RunConfig, seed: int, out: Path, command: str, progress: bool = True):
+        self.cfg, self.seed, self.out, self.command, self.progress = cfg, seed, Path(out), command, progress
+        self.name = f"{cfg.name}-s{seed}"
+        self.episodes = validation_episodes(cfg.scenario)[: cfg.eval_episodes]
+        if not self.episodes:
+            raise ConfigError("scenario", f"{cfg.scenario} is not in the {VALIDATION_SUITE} suite")
+        self.main = load_scenario(cfg.scenario).main_metric
+        self.envs = EnvCache()
+        self.history: list[dict[str, float]] = []
+        self.best: dict[str, float] | None = None
+        self.next_eval = cfg.eval_every_steps
+        self.wall_before, self.stopped_early = 0.0, False
+
+    def elapsed(self) -> float:
+        return self.wall_before + time.monotonic() - self.t0
+
+    # ----------------------------------------------------------------------------- evaluation
+    def controller(self, model: Any, normalizer: Any) -> SB3Policy:
+        from .registry import make
+
+        base = make(self.cfg.base) if self.cfg.base is not None else None
+        return SB3Policy(
+            model,
+            (),
+            self.name,
+            inputs=self.cfg.inputs,
+            base=base,
+            alpha=self.cfg.alpha,
+            normalizer=normalizer,
+        )
+
+    def validate(self, model: Any, logger: Any) -> None:
+        m = evaluate_controller(
+            self.controller(model, frozen_normalizer(model.get_env())), self.episodes, self.envs
+        )
+        zero = self.zero[self.main]
+        row = {
+            "step": model.num_timesteps,
+            "wall_s": round(self.elapsed(), 1),
+            "main": m[self.main],
+            "score": 1.0 - m[self.main] / zero if zero > 0 else math.nan,
+            "effort_rms": m["effort_rms"],
+            "limit_cycle_amp": m["limit_cycle_amp"],
+            "iae": m["iae"],
+        }
+        row["admissible"] = float(row["effort_rms"] <= self.cfg.max_effort_ratio * self.effort_ref)
+        self.history.append(row)
+        for k in ("main", "score", "effort_rms"):
+            logger.record(f"validation/{k}", row[k])
+        if row["admissible"] and (self.best is None or row["main"] < self.best["main"]):
+            self.best = row
+            _save_model(model, model.get_env(), self.out)
+        _atomic(self.out / "validation.csv", lambda p: p.write_text(_csv(self.history)))
+
+    # ----------------------------------------------------------------------------- checkpoints
+    def checkpoint(self, model: Any) -> None:
+        """model, normalizer, replay buffer and this run's state into out/checkpoint, each atomically."""
+        ck = self.out / "checkpoint"
+        _save_model(model, model.get_env(), ck)
+        if hasattr(model, "replay_buffer") and model.replay_buffer is not None:
+            _atomic(ck / "replay_buffer.pkl", lambda p: model.save_replay_buffer(p))
+        state = {
+            "num_timesteps": model.num_timesteps,
+            "wall_s": self.elapsed(),
+            "history": self.history,
+            "best": self.best,
+            "next_eval": self.next_eval,
+            "episodes": model.get_env().get_attr("episodes"),
+        }
+        _atomic(ck / "state.json", lambda p: p.write_text(json.dumps(state)))
+
+    # ----------------------------------------------------------------------------- the run
+    def train(self, resume: bool = False) -> dict[str, Any]:
+        """Train, select, write the model folder; returns the manifest."""
+        import torch
+        from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+        torch.set_num_threads(1)
+        cfg, out = self.cfg, self.out
+        ck = out / "checkpoint"
+        if (out / MANIFEST).exists() and not resume:
+            raise FileExistsError(f"{out} holds a finished run; use another --out, or --resume to extend it")
+        if not resume and (ck / "state.json").exists():
+            raise FileExistsError(f"{out} holds an unfinished run: continue it with --resume")
+        out.mkdir(parents=True, exist_ok=True)
+        classical = classical_on(cfg.scenario, self.episodes, self.envs)
+        self.baseline, self.zero = best_classical(cfg.scenario, classical), classical["Zero"]
+        # admissible effort: relative to the best baseline, and to the base controller in residual mode
+        self.effort_ref = min(
+            self.baseline.effort_rms, classical[cfg.base]["effort_rms"] if cfg.base else math.inf
+        )
+        fns = [lambda i=i: make_env(cfg, self.seed, i, str(out / "monitor")) for i in range(cfg.n_envs)]
+        (out / "monitor").mkdir(exist_ok=True)
+        venv: Any = DummyVecEnv(fns)
+        gamma = cfg.hyperparams.get("gamma", 0.99)
+        state = None
+        if resume and (ck / "state.json").exists():
+            state = json.loads((ck / "state.json").read_text())
+            if (ck / NORMALIZER).exists():
+                venv = VecNormalize.load(str(ck / NORMALIZER), venv)
+                venv.training = True
+            model = algorithm_class(cfg.algorithm).load(str(ck / MODEL), env=venv, device="cpu")
+            model.tensorboard_log = str(out / "tb")
+            if (ck / "replay_buffer.pkl").exists():
+                model.load_replay_buffer(str(ck / "replay_buffer.pkl"))
+            for i, n in enumerate(state["episodes"]):
+                venv.env_method("set_episodes", n, indices=[i])
+            self.history, self.best, self.next_eval = state["history"], state["best"], state["next_eval"]
+            self.wall_before = state["wall_s"]
+        else:
+            if cfg.normalize_observation or cfg.normalize_reward:
+                venv = VecNormalize(
+                    venv, norm_obs=cfg.normalize_observation, norm_reward=cfg.normalize_reward, gamma=gamma
+                )
+            model = build_model(cfg, venv, self.seed, str(out / "tb"))
+        done = model.num_timesteps
+        self.t0 = time.monotonic()
+        remaining = cfg.total_timesteps - done
+        if remaining > 0:
+            model.learn(
+                remaining,
+                callback=_callback_class()(self),
+                reset_num_timesteps=state is None,
+                progress_bar=self.progress,
+                tb_log_name="run",
+            )
+            if model.num_timesteps >= self.next_eval - cfg.eval_every_steps and (
+                not self.history or self.history[-1]["step"] != model.num_timesteps
+            ):
+                self.validate(model, model.logger)
+            self.checkpoint(model)
+        if self.best is None:
+            raise RuntimeError(
+                f"{self.name}: no validation evaluation had effort_rms <= {cfg.max_effort_ratio} x "
+                f"{self.effort_ref:.4g} (the baseline's): nothing to select"
+            )
+        manifest = self.manifest(model.num_timesteps)
+        _atomic(out / MANIFEST, lambda p: p.write_text(yaml.safe_dump(manifest, sort_keys=False)))
+        plot_curve(self.history, self.baseline, self.main, out / "training_curve.png", self.name)
+        return manifest
+
+    def manifest(self, steps: int) -> dict[str, Any]:
+        import stable_baselines3
+
+        cfg = self.cfg
+        prov = provenance()
+        return {
+            "name": self.name,
+            "algorithm": cfg.algorithm,
+            "model": MODEL,
+            "normalizer": NORMALIZER if (self.out / NORMALIZER).exists() else None,
+            "scenario": cfg.scenario,
+            "plants": [load_scenario(cfg.scenario).spec.name],
+            "base_controller": cfg.base,
+            "alpha": cfg.alpha,
+            "inputs": dataclasses.asdict(cfg.inputs),
+            "seed": self.seed,
+            "steps": int(steps),
+            "selected_step": int(self.best["step"]),
+            "wall_time_s": round(self.elapsed(), 1),
+            "stopped_at_wall_time_limit": self.stopped_early,
+            "command": self.command,
+            "package_version": prov["package_version"],
+            "git_commit": prov["git_commit"],
+            "stable_baselines3": stable_baselines3.__version__,
+            "torch_threads": 1,
+            "training_seeds": f"{TRAINING_SEEDS + self.seed * SEEDS_PER_RUN} + k (episode k)",
+            "validation": {
+                "suite": VALIDATION_SUITE,
+                "episodes": len(self.episodes),
+                "seeds": [e.seed for e in self.episodes],
+                "main_metric": self.main,
+                "value": self.best["main"],
+                "score": self.best["score"],
+                "effort_rms": self.best["effort_rms"],
+                "limit_cycle_amp": self.best["limit_cycle_amp"],
+                "best_classical": dataclasses.asdict(self.baseline),
+                "admissible_effort_rms": self.cfg.max_effort_ratio * self.effort_ref,
+            },
+            "config": {**cfg.as_dict(), "inputs": dataclasses.asdict(cfg.inputs)},
+        }
+
+
+def _csv(rows: list[dict[str, Any]]) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+    w.writeheader()
+    w.writerows(rows)
+    return buf.getvalue()
+
+
+def plot_curve(
+    history: list[dict[str, float]], baseline: Baseline, main: str, path: Path, title: str
+) -> None:
+    """Validation main metric and effort against training steps, with the best classical baseline."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    steps = [h["step"] for h in history]
+    fig, ax = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
+    ax[0].plot(steps, [h["main"] for h in history], "o-", label="policy (validation mean)")
+    ax[0].axhline(baseline.main, color="k", ls="--", label=f"{baseline.name} (best classical)")
+    ax[0].set(ylabel=main, yscale="log")
+    ax[0].legend()
+    ax[1].plot(steps, [h["effort_rms"] for h in history], "o-")
+    ax[1].axhline(baseline.effort_rms, color="k", ls="--")
+    ax[1].set(ylabel="effort_rms", xlabel="training steps")
+    ax[0].set_title(title)
+    fig.tight_layout()
+    _atomic(path, lambda p: fig.savefig(p, dpi=90, format="png"))
+    plt.close(fig)
+
+
+# ------------------------------------------------------------------------------------------- runs
+def run_dir(out: Path, cfg: RunConfig, seed: int) -> Path:
+    return Path(out) / cfg.name / cfg.scenario / f"seed{seed}"
+
+
+def train_one(args: tuple[RunConfig, int, str, str, bool, bool]) -> dict[str, Any]:
+    """One run (picklable for a process pool): (config, seed, out dir, command, resume, progress)."""
+    cfg, seed, out, command, resume, progress = args
+    with contextlib.redirect_stdout(sys.stderr) if not progress else contextlib.nullcontext():
+        return TrainingRun(cfg, seed, Path(out), command, progress).train(resume)
+
+
+def train_many(
+    cfgs: Sequence[RunConfig], seeds: Sequence[int], out: Path, resume: bool, workers: int
+) -> list[dict[str, Any]]:
+    """Every (config, seed) run; with workers > 1 on a spawn pool, one torch thread each."""
+    command = shlex.join([Path(sys.executable).name, *sys.argv])
+    jobs = [(c, s, str(run_dir(out, c, s)), command, resume, workers == 1) for c in cfgs for s in seeds]
+    if workers == 1:
+        return [train_one(j) for j in jobs]
+    import multiprocessing as mp
+
+    with mp.get_context("spawn").Pool(workers, maxtasksperchild=1) as pool:
+        return pool.map(train_one, jobs, chunksize=1)

@@ -1,0 +1,54 @@
+"""Train learned friction compensators (stable-baselines3 / sb3-contrib) from a training config.
+
+    python scripts/train.py --config configs/agents/residual_sac.yaml [--scenario S] [--seed N ...]
+                            [--workers W] [--out DIR] [--resume]
+
+Each (scenario, seed) run writes DIR/<name>/<scenario>/seed<N>/: the model selected on the validation
+suite with its frozen normalisation statistics, manifest.yaml (algorithm, scenario, base controller, α,
+hyper-parameters, seed, steps, wall time, this command, package version, validation score),
+validation.csv, training_curve.png, TensorBoard logs (tb/) and a checkpoint for --resume. The folder
+is a leaderboard entry: python scripts/leaderboard.py --models DIR/<name>/<scenario>/seed<N>
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from frictiongym.agents.training import config_names, load_config, train_many
+from frictiongym.envs.config import ConfigError
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument(
+        "--config", required=True, help=f"a YAML path or a name of configs/agents/ {config_names()}"
+    )
+    ap.add_argument("--scenario", help="train only this scenario of the config")
+    ap.add_argument("--seed", type=int, nargs="+", default=[0], help="training seeds (default: 0)")
+    ap.add_argument("--workers", type=int, default=1, help="runs in parallel, one process each (default 1)")
+    ap.add_argument("--out", type=Path, default=Path("out/models"))
+    ap.add_argument("--resume", action="store_true", help="continue the runs' checkpoints")
+    args = ap.parse_args(argv)
+    if args.workers < 1 or any(s < 0 for s in args.seed):
+        ap.error("--workers must be >= 1 and seeds >= 0")
+    try:
+        cfgs = load_config(args.config, args.scenario)
+        manifests = train_many(cfgs, args.seed, args.out, args.resume, args.workers)
+    except (ConfigError, FileExistsError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    for m in manifests:
+        v = m["validation"]
+        b = v["best_classical"]
+        print(
+            f"{m['name']:<24} {m['scenario']:<24} steps {m['steps']:>7} wall {m['wall_time_s']:>6.0f} s  "
+            f"validation {v['main_metric']} {v['value']:.4g} (best classical {b['name']} {b['main']:.4g}), "
+            f"effort_rms {v['effort_rms']:.4g} ({b['effort_rms']:.4g})"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,246 @@
+"""Training pipeline (agents/training.py, scripts/train.py): configs, every algorithm, save/load, resume,
+the residual's zero start, asymmetric actor-critic, registry entries, and the sim-to-real study."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+pytest.importorskip("stable_baselines3")
+pytest.importorskip("sb3_contrib")
+
+from frictiongym.agents import registry
+from frictiongym.agents.base import EpisodeContext
+from frictiongym.agents.engine import plan
+from frictiongym.agents.evaluate import EnvCache, run_episode
+from frictiongym.agents.learned import PolicyInputs, SB3Policy
+from frictiongym.agents.settings import knowledge_defaults
+from frictiongym.agents.training import (
+    SEEDS_PER_RUN,
+    TRAINING_SEEDS,
+    TrainingRun,
+    build_model,
+    load_config,
+    make_env,
+    validation_episodes,
+)
+from frictiongym.envs.config import ConfigError
+from frictiongym.envs.suites import load_suite
+
+SCENARIO = "flexible_speed_step"  # 250 steps per episode: the cheapest validation episodes
+HYPER = {
+    "SAC": {"learning_starts": 0, "batch_size": 32, "buffer_size": 2000, "policy_kwargs": {"net_arch": [16]}},
+    "TD3": {"learning_starts": 0, "batch_size": 32, "buffer_size": 2000, "action_noise_std": 0.01},
+    "TQC": {"learning_starts": 0, "batch_size": 32, "buffer_size": 2000, "policy_kwargs": {"n_critics": 2}},
+    "PPO": {"n_steps": 128, "batch_size": 64, "n_epochs": 1},
+    "RecurrentPPO": {"n_steps": 128, "batch_size": 64, "n_epochs": 1},
+}
+
+
+def write_config(tmp_path: Path, algo: str, steps: int = 256, **extra) -> Path:
+    entry = {"residual": {"base": "PID", "alpha": 0.1}, **extra}
+    cfg = {
+        "name": f"Smoke{algo}",
+        "algorithm": algo,
+        "defaults": {
+            "total_timesteps": steps,
+            "validation": {"every_steps": 128, "episodes": 2, "max_effort_ratio": 100.0},
+            "hyperparams": HYPER[algo],
+        },
+        "scenarios": {SCENARIO: entry},
+    }
+    path = tmp_path / f"{algo}.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    return path
+
+
+def train(tmp_path: Path, algo: str, out: str = "run", resume: bool = False, **kw) -> tuple[dict, Path]:
+    (cfg,) = load_config(write_config(tmp_path, algo, **kw))
+    folder = tmp_path / out
+    return TrainingRun(cfg, 0, folder, "pytest", progress=False).train(resume), folder
+
+
+@pytest.mark.parametrize("algo", ["SAC", "TD3", "TQC", "PPO", "RecurrentPPO"])
+def test_every_algorithm_trains_and_its_saved_model_acts_identically(tmp_path, algo):
+    """A few hundred steps per algorithm; the model folder loads through the registry and reproduces the
+    validation evaluation that selected it, to the last bit (same actions on the same episodes)."""
+    manifest, folder = train(tmp_path, algo)
+    assert manifest["algorithm"] == algo and manifest["steps"] >= 256 and manifest["base_controller"] == "PID"
+    for f in ("model.zip", "manifest.yaml", "validation.csv", "training_curve.png"):
+        assert (folder / f).is_file(), f
+    c = registry.make(manifest["name"], (str(folder),))
+    envs = EnvCache()
+    episodes = validation_episodes(SCENARIO)[:2]
+    main = [run_episode(c, e, envs=envs).metrics[manifest["validation"]["main_metric"]] for e in episodes]
+    assert np.mean(main) == manifest["validation"]["value"]
+
+
+def test_resume_continues_the_same_run(tmp_path):
+    """--resume keeps the history, the step count and the training-seed schedule, and trains to the new
+    total; without --resume a finished folder is refused."""
+    first, folder = train(tmp_path, "SAC", steps=256)
+    episodes_before = json.loads((folder / "checkpoint" / "state.json").read_text())["episodes"]
+    assert episodes_before == [2]  # 256 steps of 250-step episodes: the second episode is running
+    with pytest.raises(FileExistsError, match="finished run"):
+        train(tmp_path, "SAC", steps=512)
+    second, _ = train(tmp_path, "SAC", steps=512, resume=True)
+    assert second["steps"] == 512 and second["wall_time_s"] >= first["wall_time_s"]
+    steps = [int(r.split(",")[0]) for r in (folder / "validation.csv").read_text().splitlines()[1:]]
+    assert steps[:2] == [128, 256] and steps[-1] == 512
+    state = json.loads((folder / "checkpoint" / "state.json").read_text())
+    # the resumed run starts a fresh episode (SB3 resets the env after loading) with the schedule's next
+    # seed: episodes 3 (steps 257-506) and 4; a restarted schedule would have counted 2
+    assert state["episodes"] == [4]
+
+
+def test_a_residual_with_zero_output_is_bit_identical_to_its_base(tmp_path):
+    """The residual starts at exactly zero output (zeroed last layer): its episodes equal the base
+    controller's, bit for bit, for every algorithm family."""
+    base = registry.make("PID")
+    episode = validation_episodes(SCENARIO)[0]
+    ref = run_episode(base, episode, keep_log=True)
+    for algo in ("SAC", "TD3", "PPO"):
+        (cfg,) = load_config(write_config(tmp_path, algo))
+        from stable_baselines3.common.vec_env import DummyVecEnv
+
+        model = build_model(cfg, DummyVecEnv([lambda c=cfg: make_env(c, 0, 0)]), 0, None)
+        c = SB3Policy(model, inputs=cfg.inputs, base=registry.make("PID"), alpha=cfg.alpha)
+        got = run_episode(c, episode, keep_log=True)
+        assert got.metrics == ref.metrics, algo
+        for k in ref.log:
+            np.testing.assert_array_equal(got.log[k], ref.log[k])
+
+
+def test_training_env_uses_its_own_seeds_and_the_base_in_the_loop(tmp_path):
+    """Training episodes run on TRAINING_SEEDS + s·SEEDS_PER_RUN + k·n_envs + i, never a suite's seeds; the
+    observation ends with the base action."""
+    (cfg,) = load_config(write_config(tmp_path, "SAC"))
+    env = make_env(cfg, 3, 0)
+    suites = {e.seed for s in ("paper", "default", "validation", "test") for e in load_suite(s)}
+    for k in range(3):
+        obs, info = env.reset(seed=1000)  # a passed seed does not move the schedule
+        assert info["episode_seed"] == TRAINING_SEEDS + 3 * SEEDS_PER_RUN + k
+        assert info["episode_seed"] not in suites
+    sc = env.unwrapped.scenario
+    pid = registry.make("PID")
+    pid.reset(EpisodeContext(sc, sc.spec, knowledge_defaults()))
+    assert obs[-1] == pid.act(obs[:-1])[0]
+    assert env.observation_space.shape[0] == env.unwrapped.observation_space.shape[0] + 1
+
+
+def test_asymmetric_actor_ignores_the_privileged_block(tmp_path):
+    """With privileged_critic the critic reads ground truth, the actor does not: changing the privileged
+    entries leaves the action unchanged, changing a sensor entry does not."""
+    (cfg,) = load_config(write_config(tmp_path, "SAC", observation={"privileged_critic": True}))
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    venv = DummyVecEnv([lambda: make_env(cfg, 0, 0)])
+    model = build_model(cfg, venv, 0, None)
+    import torch
+
+    with torch.no_grad():  # give the actor a non-zero output first
+        for p in model.actor.parameters():
+            p.add_(0.1)
+    sc = EnvCache().scenario(validation_episodes(SCENARIO)[0])
+    priv = cfg.inputs.actor_indices(sc)
+    hidden = [i for i in range(cfg.inputs.size(sc)) if i not in priv]
+    assert hidden, "the privileged block is empty"
+    x = np.linspace(-0.5, 0.5, cfg.inputs.size(sc)).astype(np.float32)
+    y = x.copy()
+    y[hidden] += 3.0
+    a = model.predict(x, deterministic=True)[0]
+    assert np.array_equal(a, model.predict(y, deterministic=True)[0])
+    z = x.copy()
+    z[priv[0]] += 3.0
+    assert not np.array_equal(a, model.predict(z, deterministic=True)[0])
+
+
+def test_registry_skips_scenarios_with_another_observation(tmp_path):
+    """A model trained on the flexible servo is planned on its scenarios and skipped on others, with the
+    reason named (plant, observation shape)."""
+    manifest, folder = train(tmp_path, "PPO")
+    eps = [e for e in load_suite("validation") if e.scenario in (SCENARIO, "kang_regulation")][::5]
+    jobs, skipped = plan([manifest["name"]], eps, (str(folder),))
+    assert {j.scenario for j in jobs} == {SCENARIO}
+    assert [s[1] for s in skipped] == ["kang_regulation"] and "observes shape" in skipped[0][2]
+
+
+@pytest.mark.parametrize(
+    ("entry", "field"),
+    [
+        ({"hyperparams": {"learning_rat": 1e-3}}, "learning_rat"),
+        ({"residual": {"base": "PIDD"}}, "residual.base"),
+        ({"randomization": {"friction_scale": [0.5, 50]}}, "randomization.friction_scale"),
+        ({"totl_timesteps": 5}, "totl_timesteps"),
+        ({"hyperparams": {"learning_starts": 100}}, "learning_starts"),
+    ],
+)
+def test_config_errors_name_the_field(tmp_path, entry, field):
+    """Typos, unknown controllers, out-of-range randomisation and a random warm-up at full authority over a
+    residual are errors naming the file and the field."""
+    path = write_config(tmp_path, "SAC", **entry)
+    with pytest.raises(ConfigError, match=field) as e:
+        load_config(path)
+    assert str(path) in str(e.value)
+
+
+def test_committed_configs_load():
+    """Every training config in configs/agents/ is valid."""
+    from frictiongym.agents.training import config_names
+
+    names = config_names()
+    assert "residual_sac" in names
+    for name in names:
+        assert load_config(name)
+
+
+def test_policy_inputs_sizes():
+    """The model input: the scenario's observation with its history / privileged blocks, then the base
+    action."""
+    sc = EnvCache().scenario(validation_episodes(SCENARIO)[0])
+    assert PolicyInputs().size(sc) == sc.layout.size
+    assert PolicyInputs(2, False, True).size(sc) == sc.layout.size + 2 * (len(sc.spec.sensors) + 1) + 1
+
+
+def test_sim2real_on_a_tiny_grid(tmp_path):
+    """scripts/sim2real.py: one-axis shifts (inadmissible pins left out), joint in/out-of-distribution sets,
+    the CSV, the plot and the summary; a rerun resumes from episodes.csv."""
+    import csv
+
+    from frictiongym.agents import sim2real
+    from frictiongym.scripts.sim2real import main
+
+    args = [
+        "--scenario",
+        "kang_regulation",
+        "--models",
+        "--controllers",
+        "PD",
+        "--seeds",
+        "1",
+        "--points",
+        "2",
+    ]
+    args += ["--joint", "1", "--workers", "1", "--out", str(tmp_path)]
+    assert main(args) == 0
+    rows = list(csv.DictReader((tmp_path / "sim2real.csv").read_text().splitlines()))
+    axes = {r["axis"] for r in rows}
+    assert {"friction_scale", "delay_s", "joint_in_distribution", "joint_out_of_distribution"} <= axes
+    assert {r["controller"] for r in rows} == {"Zero", "PD"}
+    # inertia x0.5 with Kang's σ0 breaks the LuGre numerics check (h·sqrt(σ0/J) > 0.2): left out
+    assert sorted(
+        float(r["shift"]) for r in rows if r["axis"] == "inertia_scale" and r["controller"] == "PD"
+    ) == [1.5]
+    pd = {(r["axis"], r["shift"]): float(r["mean"]) for r in rows if r["controller"] == "PD"}
+    # more friction, larger final error of PD (its stick band [θ_L, θ_H] widens, seed 001 eq. 6)
+    assert pd[("friction_scale", "1.5")] > pd[("friction_scale", "0.5")]
+    assert (tmp_path / "sim2real.png").stat().st_size > 0
+    assert "Where each controller keeps its lead" in (tmp_path / "sim2real.md").read_text()
+    n = len((tmp_path / "episodes.csv").read_text().splitlines())
+    episodes, _ = sim2real.plan("kang_regulation", 1, 2, 1)
+    assert n == 1 + 2 * len(episodes)
+    assert main(args) == 0 and len((tmp_path / "episodes.csv").read_text().splitlines()) == n
