@@ -134,14 +134,14 @@ def load_config(path: str | Path, scenario: str | None = None) -> list[RunConfig
         raise top.error("name", f"expected a name of letters, digits, '-' and '_', got {name!r}")
     defaults = _deep_merge(load_yaml(configs_dir() / "agents" / "_defaults.yaml"), top.get("defaults") or {})
     scenarios = top.section("scenarios")
-    keys = list(scenarios.keys())
+    keys = [k for k in list(scenarios.keys()) if scenarios[k] is not None]  # null: an entry left out
     if not keys:
         raise top.error("scenarios", "expected at least one scenario")
     if scenario is not None and scenario not in keys:
         raise top.error("scenarios", f"no entry for scenario {scenario!r}; the file has {keys}")
     out = []
     for sc in keys:  # every entry is checked, the asked-for ones returned
-        merged = _deep_merge(defaults, scenarios[sc] or {})
+        merged = _deep_merge(defaults, scenarios[sc])
         cfg = _run_config(Node(merged, file, f"scenarios.{sc}."), name, algo, sc, file)
         if scenario in (None, sc):
             out.append(cfg)
