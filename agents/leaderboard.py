@@ -73,6 +73,50 @@ def summarize(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> d
     return table
 
 
+MAX_EFFORT_RATIO = 1.2  # a learned compensator may spend at most this times the baseline's effort_rms
+
+
+def verdicts(table: dict[str, list[dict]], scenarios: dict[str, Scenario]) -> list[dict]:
+    """For each controller that is not a built-in (plug-ins, trained models) on each scenario: does it beat
+    the scenario's best classical baseline? It must (1) lower the main metric with a paired 95 % interval
+    of the per-episode difference below 0, (2) spend at most MAX_EFFORT_RATIO times the baseline's
+    effort_rms, and (3) add no limit cycle: its limit_cycle_amp at most 1.2x the baseline's plus the
+    scenario's settling band. A compensator that fails (2) or (3) chatters: it is not a result."""
+    out = []
+    for sc, rows in table.items():
+        base = next((r for r in rows if r["controller"] == r["baseline"]), None)
+        if base is None:
+            continue
+        band = scenarios[sc].settle_band
+        for r in rows:
+            if r["controller"] in registry.BUILTIN or r["vs_baseline"] is None:
+                continue
+            v = r["vs_baseline"]
+            effort = r["metrics"]["effort_rms"][0] / base["metrics"]["effort_rms"][0]
+            lc, lc_base = r["metrics"]["limit_cycle_amp"][0], base["metrics"]["limit_cycle_amp"][0]
+            why = []
+            if not v["diff_hi"] < 0:
+                why.append("difference interval does not exclude 0" if v["diff_lo"] < 0 else "worse")
+            if not effort <= MAX_EFFORT_RATIO:
+                why.append(f"effort {effort:.2f}x")
+            if not lc <= 1.2 * lc_base + band:
+                why.append(f"limit cycle {lc:.3g} vs {lc_base:.3g}")
+            out.append(
+                {
+                    "scenario": sc,
+                    "controller": r["controller"],
+                    "baseline": base["controller"],
+                    "vs_baseline": v,
+                    "effort_ratio": effort,
+                    "limit_cycle_amp": lc,
+                    "baseline_limit_cycle_amp": lc_base,
+                    "beats_baseline": not why,
+                    "why_not": "; ".join(why),
+                }
+            )
+    return out
+
+
 def aggregate(results: list[EpisodeResult]) -> list[dict]:
     """Per controller: the IQM of its normalised scores over the scenarios it applies to, with a 95 %
     stratified-bootstrap interval (strata: scenarios), best first."""
@@ -121,6 +165,29 @@ def markdown(
         "|---|---|---|",
     ]
     lines += [f"| {r['controller']} | {r['scenarios']} | {_fmt(r['iqm'])} |" for r in agg]
+    judged = verdicts(table, scenarios)
+    if judged:
+        lines += [
+            "",
+            "## Learned and plug-in controllers against the best classical baseline",
+            "",
+            "Beats the baseline = lower main metric with the paired 95 % interval of the per-episode "
+            f"difference below 0, effort_rms at most {MAX_EFFORT_RATIO}x the baseline's, and no new "
+            "limit cycle (limit_cycle_amp at most 1.2x the baseline's plus the settling band).",
+            "",
+            "| scenario | controller | baseline | difference of the main metric | effort ratio | limit cycle "
+            "(vs baseline) | beats the baseline |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for j in judged:
+            v = j["vs_baseline"]
+            lines.append(
+                f"| {j['scenario']} | {j['controller']} | {j['baseline']} | "
+                f"{_fmt((v['diff'], v['diff_lo'], v['diff_hi']))} | {j['effort_ratio']:.2f} | "
+                f"{j['limit_cycle_amp']:.3g} ({j['baseline_limit_cycle_amp']:.3g}) | "
+                + ("yes" if j["beats_baseline"] else f"no: {j['why_not']}")
+                + " |"
+            )
     for sc, rows in table.items():
         s = scenarios[sc]
         sec = list(s.secondary_metrics)

@@ -1,7 +1,8 @@
 """Run every applicable controller on the identical episodes of a suite and rank them.
 
     python scripts/leaderboard.py [--suite default | --scenarios A B --seeds 5000-5049 [--randomize]]
-                                  [--controllers PD PID ...] [--workers N] [--out out/leaderboard]
+                                  [--controllers PD PID ...] [--models DIR ...] [--workers N]
+                                  [--out out/leaderboard]
 
 Episodes run as jobs on N worker processes (default: every core) and land in OUT/episodes.csv as they
 finish; rerunning with the same options and --out resumes, and other options into the same --out are
@@ -18,6 +19,7 @@ from pathlib import Path
 
 from frictiongym.agents import leaderboard
 from frictiongym.agents.engine import RunMismatch
+from frictiongym.agents.registry import committed_models
 from frictiongym.envs.scenario import scenario_names
 from frictiongym.envs.suites import Episode, suite_names
 
@@ -46,7 +48,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=seed_range, help="seeds of the inline suite, e.g. 5000-5049")
     ap.add_argument("--randomize", action="store_true", help="randomise the inline suite's episodes")
     ap.add_argument("--controllers", nargs="+", help="default: all (built-in, plug-ins and --models)")
-    ap.add_argument("--models", nargs="+", default=[], type=Path, help="saved-model folders (manifest.yaml)")
+    ap.add_argument(
+        "--models",
+        nargs="*",
+        type=Path,
+        help="saved-model folders (manifest.yaml); default: the committed ones (agents/models/headline)",
+    )
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     ap.add_argument("--out", type=Path, default=Path("out/leaderboard"))
     args = ap.parse_args(argv)
@@ -62,10 +69,11 @@ def main(argv: list[str] | None = None) -> int:
         if args.scenarios
         else None
     )
+    models = args.models if args.models is not None else committed_models("headline")
     t0 = time.perf_counter()
     try:
         leaderboard.run(
-            suite, args.controllers, args.out, workers=args.workers, episodes=episodes, models=args.models
+            suite, args.controllers, args.out, workers=args.workers, episodes=episodes, models=models
         )
     except (RunMismatch, ValueError) as e:  # other options into --out; unknown controllers or bad models
         print(f"error: {e}", file=sys.stderr)

@@ -16,6 +16,7 @@ from typing import Any
 
 from ..config import ConfigError, Node, load_yaml, merge, plant_names, preset_path
 from ..friction import FRICTION_MODELS, check_numerics
+from ..identification import apply_identified, identified_section
 from .spec import JointSpec, PlantSpec
 
 __all__ = ["PlantSpec", "plant_config", "plant_module", "plant_names", "plant_spec"]
@@ -44,6 +45,9 @@ def plant_spec(name: str | Path, overrides: dict | None = None, friction_model: 
     module = plant_module(cfg.choice("plant", plant_names()))
     cfg.get("description")
     spec = module.build(cfg, friction_model)
+    identified = identified_section(cfg)
+    if identified is not None:  # friction identified from data (scripts/identify.py) replaces the document's
+        spec = apply_identified(spec, identified)
     cfg.done()
     delay_hi = spec.randomization.get("delay_s", (0.0, spec.delay))[1]
     jitter_hi = spec.randomization.get("jitter_s", (0.0, spec.jitter))[1]

@@ -1,0 +1,412 @@
+"""The identification workflow behind scripts/identify.py: get the data (a CSV log, a simulated experiment,
+or the M220 document's own numbers), fit, and write the report, plots, result.json and identified.yaml
+(a scenario override the envs load: gym.make(..., overrides=yaml.safe_load(open("identified.yaml")))).
+"""
+
+from __future__ import annotations
+
+import datetime
+import hashlib
+import json
+import math
+import shlex
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from . import experiments as ex
+from .config import configs_dir, load_yaml
+from .identification import (
+    IDENTIFIABLE,
+    Estimate,
+    FrictionId,
+    Log,
+    coulomb_viscous_fit,
+    fit_step,
+    identify_coulomb_viscous,
+    identify_lugre,
+    read_log,
+    rows_reproducing,
+    step_through_points,
+    truth_values,
+    two_point_step_id,
+    write_log,
+)
+from .units import rad_per_count
+
+# seed 000 §2.3 as printed: (slope V·s/count, intercept V) per direction, as strings (their digits matter)
+DOCUMENT_LINES = {"up": ("2.3517e-6", "0.114716"), "down": ("2.4484e-6", "-0.152784")}
+TABLE = "iurian2005_m220_friction_table.csv"
+RECOMMENDED_MIN_SPEED_COUNTS_S = 7000.0  # above the low-speed hump of rows 1-4 (stick-slip, Stribeck)
+
+
+def provenance(data: str, extra: str = "") -> str:
+    """One line: the data (file and SHA-256, or the simulation), the command, package and date."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        pkg = version("frictiongym")
+    except PackageNotFoundError:
+        pkg = "unknown"
+    p = Path(data)
+    what = f"{data} (sha256 {hashlib.sha256(p.read_bytes()).hexdigest()[:16]})" if p.is_file() else data
+    cmd = shlex.join([Path(sys.executable).name, *sys.argv])
+    return f"data: {what}{extra}; command: {cmd}; frictiongym {pkg}; {datetime.date.today().isoformat()}"
+
+
+def _atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_text(text)
+    tmp.replace(path)
+
+
+def write_identified(out: Path, values: dict[str, float], source: str) -> Path:
+    """identified.yaml: the scenario override that puts the identified friction into a plant."""
+    body = {
+        "plant_overrides": {
+            "friction_identified": {**{k: float(v) for k, v in values.items()}, "source": source}
+        }
+    }
+    text = (
+        "# Drive-referred friction identified by scripts/identify.py (command units, rad/s). Load it with\n"
+        '#   gym.make("frictiongym/<Plant>-v0", scenario=...,\n'
+        '#            overrides=yaml.safe_load(open("identified.yaml")))\n'
+        + yaml.safe_dump(body, sort_keys=False)
+    )
+    path = out / "identified.yaml"
+    _atomic(path, text)
+    return path
+
+
+def _fmt(e: Estimate) -> str:
+    ci = "" if not (math.isfinite(e.low) and math.isfinite(e.high)) else f" [{e.low:.5g}, {e.high:.5g}]"
+    return f"{e.value:.6g}{ci}"
+
+
+def _plot_static(fid: FrictionId, unit: str, path: Path, truth: dict[str, float] | None = None) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .identification import static_friction_model
+
+    v = fid.values()
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    for d, sign in (("pos", 1), ("neg", -1)):
+        sp, cmd = fid.points[d]
+        ax.plot(sp, cmd, "o", label=f"steady holds ({d})")
+        grid = np.geomspace(max(abs(sp).min() / 3, 1e-6), abs(sp).max(), 200)
+        model = static_friction_model(
+            grid, v[f"coulomb_{d}"], v[f"static_{d}"], v["stribeck_velocity_rad_s"], v["viscous_per_rad_s"]
+        )
+        ax.plot(sign * grid, sign * model, "-", label=f"fit ({d})")
+        if truth is not None:
+            tm = static_friction_model(
+                grid,
+                truth[f"coulomb_{d}"],
+                truth[f"static_{d}"],
+                truth["stribeck_velocity_rad_s"] if math.isfinite(truth["stribeck_velocity_rad_s"]) else 1.0,
+                truth["viscous_per_rad_s"],
+            )
+            ax.plot(sign * grid, sign * tm, "k:", lw=1, label="truth" if d == "pos" else None)
+    ax.set(xlabel="speed (rad/s)", ylabel=f"command ({unit})", xscale="symlog", title="steady-state friction")
+    ax.axhline(0, color="0.8", lw=0.5)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+# ------------------------------------------------------------------------------------------- step
+def step_from_document() -> tuple[str, dict[str, Any]]:
+    """§2.2: the two-point method as printed, and the full model through the same two points."""
+    from .plants import plant_spec
+
+    doc = plant_spec("m220").document
+    t, y, v = tuple(doc.step_points_t_s), tuple(doc.step_points_counts), doc.step_input_v
+    two = two_point_step_id(t, y, v)
+    full = step_through_points(t, y, v)
+    lines = [
+        "## §2.2 step identification from the document's two points",
+        "",
+        f"Points (t s, counts): {list(zip(t, y, strict=True))}, step v = {v} V.",
+        "",
+        f"- Two-point line (as printed): α1 = {two['alpha1']:.3f}, α2 = {two['alpha2']:.3f}, "
+        f"a = {two['a']:.6f} 1/s, k = {two['k']:.3f} counts/(V·s²) (document: 0.512081, 82421.020583).",
+        f"- Full response θ = α1·t + α2 + α3·e^(-a·t) through the same points: a = {full['a']:.6f} 1/s, "
+        f"k = {full['k']:.3f} counts/(V·s²): a differs by {full['a'] / two['a'] - 1:+.2%}, k by "
+        f"{full['k'] / two['k'] - 1:+.2%}. The two-point line ignores the exponential term (ERRATA 000), so "
+        "the printed model does not pass through the points it was fitted to: it predicts "
+        + ", ".join(
+            f"{float(p):.0f}"
+            for p in (
+                two["alpha1"] * np.array(t) + two["alpha2"] - two["alpha2"] * np.exp(-two["a"] * np.array(t))
+            )
+        )
+        + " counts at the two times.",
+    ]
+    return "\n".join(lines), {"two_point": two, "full_through_points": full}
+
+
+def step_from_log(log: Log, v: float) -> tuple[str, dict[str, Any]]:
+    """Least-squares k, a of k/(s(s+a)) from a step log (position), and the two-point method on its last
+    points."""
+    if log.position is None:
+        raise ValueError("a step fit needs a position column (k/(s(s+a)) is the position response)")
+    t = log.t - log.t[0]
+    theta = log.position - log.position[0]
+    fit = fit_step(t, theta, v)
+    i, j = int(0.88 * (len(t) - 1)), len(t) - 1  # two late points, as in §2.2 (4.44 and 4.91 s of 5 s)
+    two = two_point_step_id((t[i], t[j]), (theta[i], theta[j]), v)
+    text = "\n".join(
+        [
+            "## Step identification",
+            "",
+            f"- Least squares, full response: k = {_fmt(fit['k'])} rad/(cu·s²), a = {_fmt(fit['a'])} 1/s.",
+            f"- Two-point line at t = {t[i]:.2f}, {t[j]:.2f} s: k = {two['k']:.6g}, a = {two['a']:.6g} "
+            f"({two['k'] / fit['k'].value - 1:+.1%}, {two['a'] / fit['a'].value - 1:+.1%} from the full "
+            "fit).",
+            "- Friction acts as an input offset: k here is the gain for the step minus the Coulomb level "
+            "(the §2.2 model has no friction).",
+        ]
+    )
+    return text, {"least_squares": {k: vars(e) for k, e in fit.items()}, "two_point": two}
+
+
+# ------------------------------------------------------------------------------------------- friction
+def document_table() -> dict[str, np.ndarray]:
+    """The §2.3 table (configs/published), counts/s and V."""
+    t = np.genfromtxt(configs_dir() / "published" / TABLE, delimiter=",", names=True)
+    return {k: np.asarray(t[k]) for k in t.dtype.names}
+
+
+def friction_from_document() -> tuple[str, dict[str, Any], dict[str, float]]:
+    """§2.3: which rows reproduce the printed lines (exhaustive search), and the recommended fit with 95 %
+    intervals (rows above 7000 counts/s). Returns the report, the results and the override values (the
+    recommended fit, in V and V·s/rad)."""
+    t = document_table()
+    rad = rad_per_count(16000)
+    res: dict[str, Any] = {}
+    lines = ["## §2.3 Coulomb + viscous friction from the document's table", ""]
+    for d, (vk, uk) in (
+        ("up", ("velocity_up_counts_per_s", "control_up_V")),
+        ("down", ("velocity_down_counts_per_s", "control_down_V")),
+    ):
+        slope, intercept = DOCUMENT_LINES[d]
+        rows = rows_reproducing(t[vk], t[uk], slope, intercept)
+        all_rows = coulomb_viscous_fit(t[vk], t[uk])
+        rec = coulomb_viscous_fit(t[vk], t[uk], RECOMMENDED_MIN_SPEED_COUNTS_S)
+        res[d] = {
+            "rows_reproducing_printed": rows,
+            "all_rows": {
+                "coulomb_V": vars(all_rows.coulomb),
+                "viscous_V_s_per_count": vars(all_rows.viscous),
+            },
+            "recommended": {
+                "coulomb_V": vars(rec.coulomb),
+                "viscous_V_s_per_count": vars(rec.viscous),
+                "rows": rec.points,
+            },
+        }
+        only = f"exactly one subset, rows {rows[0]}" if len(rows) == 1 else f"{len(rows)} subsets: {rows}"
+        lines += [
+            f"**{d}** (printed F_v = {slope} V·s/count, F_C = {intercept} V):",
+            "",
+            f"- Of all 65,519 subsets of two or more of the 16 rows, {only} gives a least-squares line that "
+            "rounds to both printed numbers: the authors left out "
+            f"rows {sorted(set(range(1, 17)) - set(rows[0]))}"
+            if rows
+            else "- no subset reproduces the printed line",
+            f"- All 16 rows: F_C = {_fmt(all_rows.coulomb)} V, F_v = {_fmt(all_rows.viscous)} V·s/count.",
+            f"- Recommended (rows with |v| >= {RECOMMENDED_MIN_SPEED_COUNTS_S:.0f} counts/s, {rec.points} "
+            f"rows, past the low-speed hump of rows 1-4): F_C = {_fmt(rec.coulomb)} V, "
+            f"F_v = {_fmt(rec.viscous)} V·s/count (95 % intervals).",
+            "",
+        ]
+    up, down = res["up"]["recommended"], res["down"]["recommended"]
+    values = {
+        "coulomb_pos": up["coulomb_V"]["value"],
+        "coulomb_neg": -down["coulomb_V"]["value"],
+        "viscous_per_rad_s": 0.5
+        * (up["viscous_V_s_per_count"]["value"] + down["viscous_V_s_per_count"]["value"])
+        / rad,
+    }
+    lines.append(
+        "The identified plant (identified.yaml) takes the recommended lines: F_v is the mean of the two "
+        "directions (the simulator has one σ2), the static levels equal the Coulomb ones (the table shows no "
+        "consistent Stribeck rise) and vs is the preset's."
+    )
+    return "\n".join(lines), res, values
+
+
+def friction_report(fid: FrictionId, unit: str, truth: dict[str, float] | None, title: str) -> str:
+    lines = [f"## {title}", "", "| parameter | estimate [95 % CI] | truth | error |", "|---|---|---|---|"]
+    for k, e in fid.estimates.items():
+        tv = truth.get(k) if truth else None
+        err = f"{e.value / tv - 1:+.2%}" if tv and math.isfinite(tv) and k not in fid.unidentified else ""
+        mark = " (not identified)" if k in fid.unidentified else ""
+        lines.append(f"| {k}{mark} | {_fmt(e)} | {'' if tv is None else f'{tv:.6g}'} | {err} |")
+    lines += ["", f"Units: levels in {unit}, speeds rad/s, viscous {unit}·s/rad, σ0 {unit}/rad.", ""]
+    lines += [f"- {n}" for n in fid.notes]
+    lines += ["", "What each experiment identifies:", ""] + [f"- {k}: {v}" for k, v in IDENTIFIABLE.items()]
+    return "\n".join(lines)
+
+
+# ------------------------------------------------------------------------------------------- run
+def run(
+    kind: str,
+    out: Path,
+    csv: Path | None = None,
+    simulate: str | None = None,
+    seed: int = 0,
+    randomize: bool = False,
+    document: bool = False,
+    breakaway: tuple[Path, float] | None = None,
+    presliding: tuple[Path, float, float] | None = None,
+    step_v: float | None = None,
+    min_speed: float = 0.0,
+) -> str:
+    """One identification run into out/ (report.md, result.json, plots, identified.yaml, logs/)."""
+    out.mkdir(parents=True, exist_ok=True)
+    truth, rig, proto = None, None, None
+    logs: dict[str, Log] = {}
+    if simulate is not None:
+        rig, proto = ex.Rig.of(simulate, seed, randomize), ex.protocol(simulate)
+        want = {"step": ("step",), "friction": ("holds",), "lugre": ("holds", "breakaway", "presliding")}[
+            kind
+        ]
+        logs = ex.run_all(rig, proto, want)
+        (out / "logs").mkdir(exist_ok=True)
+        for name, log in logs.items():
+            write_log(out / "logs" / f"{name}.csv", log)
+        truth = truth_values(rig.spec)
+        data = f"simulated {simulate} (seed {seed}, randomize {randomize})"
+    elif csv is not None:
+        logs = {"step" if kind == "step" else "holds": read_log(csv)}
+        if breakaway is not None:
+            logs["breakaway"] = read_log(breakaway[0])
+        if presliding is not None:
+            logs["presliding"] = read_log(presliding[0])
+        data = str(csv)
+    elif not document:
+        raise ValueError("give one of --csv, --simulate or --document")
+    else:
+        data = f"seed 000 §2.2-2.3 (configs/published/{TABLE})"
+    results: dict[str, Any] = {"kind": kind, "data": data}
+    sections = [f"# Identification ({kind}): {data}", ""]
+    values = None
+    if kind == "step":
+        if document:
+            text, res = step_from_document()
+        else:
+            v = step_v if step_v is not None else (proto.step_v if proto else None)
+            if v is None:
+                raise ValueError("--step-v (the step command of the log) is required with --csv")
+            text, res = step_from_log(logs["step"], v)
+        sections.append(text)
+        results["step"] = res
+    elif kind == "friction" and document:
+        text, res, values = friction_from_document()
+        sections.append(text)
+        results["friction"] = res
+        t = document_table()
+        _plot_document(t, values, out / "fit_friction.png")
+    else:
+        unit = logs["holds"].command_unit
+        if kind == "friction":
+            fid = identify_coulomb_viscous(logs["holds"], min_speed)
+        else:
+            brk = (
+                (logs["breakaway"], breakaway[1] if breakaway else proto.threshold)
+                if "breakaway" in logs
+                else None
+            )
+            pre = None
+            if "presliding" in logs:
+                pre = (
+                    logs["presliding"],
+                    *(presliding[1:] if presliding else (proto.presliding_amplitude, proto.presliding_hz)),
+                )
+            fid = identify_lugre(logs["holds"], brk, pre)
+        values = {
+            k: v
+            for k, v in fid.values().items()
+            if k not in fid.unidentified or k == "stribeck_velocity_rad_s"
+        }
+        if kind == "friction":
+            values = {k: values[k] for k in ("coulomb_pos", "coulomb_neg", "viscous_per_rad_s")}
+        elif "stribeck_velocity_rad_s" in fid.unidentified:
+            values.pop("stribeck_velocity_rad_s")
+        sections.append(friction_report(fid, unit, truth, "Friction" if kind == "friction" else "LuGre"))
+        results["estimates"] = {k: vars(e) for k, e in fid.estimates.items()}
+        results["unidentified"] = sorted(fid.unidentified)
+        results["notes"] = fid.notes
+        results["truth"] = truth
+        _plot_static(fid, unit, out / "fit_friction.png", truth if kind == "lugre" else None)
+    if values is not None:
+        path = write_identified(out, values, provenance(data))
+        sections += ["", f"Override for the envs: `{path.name}` ({', '.join(values)})."]
+        results["identified"] = values
+    text = "\n".join(sections) + "\n"
+    _atomic(out / "report.md", text)
+    _atomic(out / "result.json", json.dumps(results, indent=1, default=float))
+    return text
+
+
+def _plot_document(t: dict[str, np.ndarray], values: dict[str, float], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rad = rad_per_count(16000)
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    for vk, uk, c, s in (
+        ("velocity_up_counts_per_s", "control_up_V", "coulomb_pos", 1),
+        ("velocity_down_counts_per_s", "control_down_V", "coulomb_neg", -1),
+    ):
+        ax.plot(t[vk], t[uk], "o", label=f"table ({'up' if s > 0 else 'down'})")
+        v = np.linspace(0, abs(t[vk]).max(), 50) * s
+        ax.plot(v, s * values[c] + values["viscous_per_rad_s"] * rad * v, "-", label="recommended fit")
+    ax.set(xlabel="velocity (counts/s)", ylabel="control (V)", title="seed 000 §2.3")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def recovery(plants: list[str], draws: int) -> tuple[str, dict[str, dict[str, list[float]]]]:
+    """The acceptance study: LuGre identification on `draws` randomised plants per plant (noise and
+    quantisation on): the relative error of every identified parameter. Returns a markdown table."""
+    from .identification import identify_simulated
+
+    errors: dict[str, dict[str, list[float]]] = {}
+    for plant in plants:
+        p = ex.protocol(plant)
+        errors[plant] = {}
+        for seed in range(draws):
+            rig = ex.Rig.of(plant, seed, True)
+            fid = identify_simulated(ex.run_all(rig, p, ("holds", "breakaway", "presliding")), p)
+            tv = truth_values(rig.spec)
+            for k, e in fid.estimates.items():
+                if k in tv and math.isfinite(tv[k]) and k not in fid.unidentified:
+                    errors[plant].setdefault(k, []).append(e.value / tv[k] - 1)
+    lines = [
+        "| plant | parameter | draws identified | max abs error | mean error |",
+        "|---|---|---|---|---|",
+    ]
+    for plant, by in errors.items():
+        for k, v in by.items():
+            lines.append(
+                f"| {plant} | {k} | {len(v)}/{draws} | {np.max(np.abs(v)):.2%} | {np.mean(v):+.2%} |"
+            )
+    return "\n".join(lines) + "\n", errors
+
+
+def identified_yaml(path: Path) -> dict[str, Any]:
+    """A written identified.yaml, loaded."""
+    return load_yaml(path)

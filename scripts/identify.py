@@ -1,0 +1,82 @@
+"""Identify a plant's friction from data, and write the override the envs load.
+
+    python scripts/identify.py step     (--csv LOG --step-v V | --simulate PLANT [--seed N] [--randomize]
+                                         | --document) [--out DIR]
+    python scripts/identify.py friction (--csv HOLDS [--min-speed RAD_S] | --simulate PLANT ... | --document)
+    python scripts/identify.py lugre    (--csv HOLDS [--breakaway CSV THRESHOLD]
+                                         [--presliding CSV AMPLITUDE HZ] | --simulate PLANT ...) [--out DIR]
+    python scripts/identify.py recovery [--draws 20] [--out DIR]
+
+CSV logs: '#' provenance lines, then columns time_s, command_V or command_Nm, position_rad|position_deg
+and/or speed_rad_s|speed_deg_s, and for holds/ramps a segment column (one per hold or ramp) and optionally
+speed_reference_rad_s (docs/identification.md). --simulate runs the same experiments on a plant of the
+suite (randomised with --randomize) and saves their logs. --document uses the M220's own data (seed 000
+§2.2-2.3). Writes DIR/report.md, result.json, fit plots and identified.yaml:
+    gym.make("frictiongym/M220-v0", scenario=..., overrides=yaml.safe_load(open("DIR/identified.yaml")))
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from frictiongym.envs.config import ConfigError, plant_names
+from frictiongym.envs.identify_workflow import recovery, run
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("kind", choices=["step", "friction", "lugre", "recovery"])
+    src = ap.add_mutually_exclusive_group()
+    src.add_argument("--csv", type=Path, help="a hardware (or any) log: a step, or speed holds")
+    src.add_argument("--simulate", choices=plant_names(), help="run the experiments on this simulated plant")
+    src.add_argument("--document", action="store_true", help="the M220 data printed in seed 000 §2.2-2.3")
+    ap.add_argument("--seed", type=int, default=0, help="simulated plant's seed (with --randomize)")
+    ap.add_argument("--randomize", action="store_true", help="draw the simulated plant from its ranges")
+    ap.add_argument("--step-v", type=float, help="the step command of a --csv step log (V or N·m)")
+    ap.add_argument(
+        "--min-speed", type=float, default=0.0, help="friction: fit holds with |v| >= this (rad/s)"
+    )
+    ap.add_argument(
+        "--breakaway", nargs=2, metavar=("CSV", "THRESHOLD"), help="ramps log, motion threshold (rad)"
+    )
+    ap.add_argument(
+        "--presliding", nargs=3, metavar=("CSV", "AMPLITUDE", "HZ"), help="presliding log and its input"
+    )
+    ap.add_argument("--draws", type=int, default=20, help="recovery: randomised plants per plant")
+    ap.add_argument("--out", type=Path, default=Path("out/identify"))
+    args = ap.parse_args(argv)
+    try:
+        if args.kind == "recovery":
+            table, _ = recovery(plant_names(), args.draws)
+            args.out.mkdir(parents=True, exist_ok=True)
+            (args.out / "recovery.md").write_text(table)
+            print(table)
+            return 0
+        if args.document and args.kind == "lugre":
+            ap.error("--document holds a step and a Coulomb + viscous table: use step or friction")
+        text = run(
+            args.kind,
+            args.out,
+            csv=args.csv,
+            simulate=args.simulate,
+            seed=args.seed,
+            randomize=args.randomize,
+            document=args.document,
+            breakaway=(Path(args.breakaway[0]), float(args.breakaway[1])) if args.breakaway else None,
+            presliding=(Path(args.presliding[0]), float(args.presliding[1]), float(args.presliding[2]))
+            if args.presliding
+            else None,
+            step_v=args.step_v,
+            min_speed=args.min_speed,
+        )
+    except (ConfigError, ValueError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
