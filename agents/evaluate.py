@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from frictiongym.envs.plants import PlantSpec
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.suites import Episode
@@ -90,16 +91,18 @@ def run_episode(
     keep_log: bool = False,
     knowledge: dict | None = None,
     envs: EnvCache | None = None,
+    design: PlantSpec | None = None,
     **env_kwargs: Any,
 ) -> EpisodeResult:
     """Run one suite episode. The controller's own hardware (plant_overrides) is added to the scenario;
     everything random comes from the episode's seed, so every controller sees the same episode. With
-    `envs`, the env is taken from (and kept in) that cache."""
+    `envs`, the env is taken from (and kept in) that cache. `design`: the plant model the controller is
+    designed on (default: the scenario's nominal preset), e.g. an identified one."""
     env = (envs or EnvCache()).env(controller, episode, **env_kwargs)
     sc = env.scenario  # its spec holds the nominal (document) plant; the episode's draw is hidden
     know = {**knowledge_defaults(), **(knowledge or {})}
     obs, _ = env.reset(seed=episode.seed, options=episode.options())
-    controller.reset(EpisodeContext(sc, sc.spec, know))
+    controller.reset(EpisodeContext(sc, design or sc.spec, know))
     total, done, info = 0.0, False, {}
     while not done:
         obs, reward, term, trunc, info = env.step(controller.act(obs))

@@ -240,6 +240,131 @@ def plot(table: list[dict[str, Any]], scenario: str, path: Path) -> None:
     tmp.replace(path)
 
 
+# ------------------------------------------------------------------------------------------- model error
+MODEL_ERROR_SEEDS = 710_000  # "true" plants of the closing-the-loop study (a randomised draw each)
+DESIGNS = ("nominal", "identified", "true")
+
+
+def model_error(
+    scenario: str, controllers: list[str], draws: int = 10, progress: bool = True
+) -> list[dict[str, Any]]:
+    """Closing the identification loop. For each randomised "true" plant (the scenario's draw of seed
+    MODEL_ERROR_SEEDS + i), run the LuGre identification experiments on it (noise and quantisation on),
+    then run each controller on that same episode designed on three models: the nominal preset, the
+    identified plant (nominal preset + identified friction) and the true plant. Rows: controller, design,
+    seed, main metric."""
+    from tqdm import tqdm
+
+    from frictiongym.envs import experiments as ex
+    from frictiongym.envs.identification import identify_simulated
+    from frictiongym.envs.plants import plant_spec
+    from frictiongym.envs.plants.params import EpisodeParams, spec_with
+
+    from .evaluate import EnvCache, run_episode
+
+    envs = EnvCache()
+    rows = []
+    for i in tqdm(range(draws), desc="model error", unit="plant", disable=not progress):
+        seed = MODEL_ERROR_SEEDS + i
+        episode = Episode(scenario, seed, True)
+        sc = envs.scenario(episode)
+        p = ex.protocol(sc.spec)
+        rig = ex.Rig.of(sc.spec, seed, True)
+        fid = identify_simulated(ex.run_all(rig, p, ("holds", "breakaway", "presliding")), p)
+        values = {k: v for k, v in fid.values().items() if k not in fid.unidentified}
+        # a design model, not a randomised plant: no randomisation ranges (their corners need not pass)
+        identified = plant_spec(sc.spec.name, {"friction_identified": values, "randomization": None})
+        identified = replace_timing(identified, sc.spec)
+        true = spec_with(sc.spec, EpisodeParams.draw(sc.spec, seed))
+        for name in controllers:
+            c = registry.make(name)
+            if not c.applies_to(sc):
+                continue
+            for design, spec in zip(DESIGNS, (sc.spec, identified, true), strict=True):
+                r = run_episode(c, episode, envs=envs, design=spec)
+                rows.append(
+                    {"controller": name, "design": design, "seed": seed, "main": r.metrics[sc.main_metric]}
+                )
+    return rows
+
+
+def replace_timing(spec: Any, like: Any) -> Any:
+    """spec with the control period and sampling of `like` (the scenario's), as the scenario's own spec."""
+    from dataclasses import replace
+
+    return replace(spec, control_period=like.control_period, timestep=like.timestep, delay=like.delay)
+
+
+def model_error_table(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per controller and design: the mean main metric with 95 % CI; for `identified` and `nominal`, the
+    paired loss against the true-parameter design (positive = worse)."""
+    by = defaultdict(dict)
+    for r in rows:
+        by[(r["controller"], r["design"])][r["seed"]] = r["main"]
+    out = []
+    for (name, design), vals in sorted(by.items()):
+        m = stats.mean_ci(list(vals.values()))
+        row = {"controller": name, "design": design, "mean": m[0], "ci_low": m[1], "ci_high": m[2]}
+        true = by.get((name, "true"), {})
+        if design != "true" and true:
+            seeds = sorted(set(vals) & set(true))
+            d = stats.paired([vals[s] for s in seeds], [true[s] for s in seeds])
+            row |= {"loss": d["diff"], "loss_low": d["diff_lo"], "loss_high": d["diff_hi"]}
+        out.append(row)
+    return out
+
+
+def plot_model_error(table: list[dict[str, Any]], metric: str, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = sorted({r["controller"] for r in table})
+    fig, ax = plt.subplots(figsize=(1.6 * len(names) + 2, 3.6))
+    w = 0.27
+    for k, design in enumerate(DESIGNS):
+        rs = [next((r for r in table if r["controller"] == n and r["design"] == design), None) for n in names]
+        x = np.arange(len(names)) + (k - 1) * w
+        mean = [r["mean"] if r else np.nan for r in rs]
+        err = [
+            [r["mean"] - r["ci_low"] if r else 0 for r in rs],
+            [r["ci_high"] - r["mean"] if r else 0 for r in rs],
+        ]
+        ax.bar(x, mean, w, yerr=err, label=f"designed on the {design} model", capsize=2)
+    ax.set_xticks(np.arange(len(names)), names, fontsize=8)
+    ax.set(ylabel=metric, title="performance lost to model error (evaluated on the true plants)")
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    tmp = path.with_name(f".{path.name}.tmp.png")
+    fig.savefig(tmp, dpi=90)
+    plt.close(fig)
+    tmp.replace(path)
+
+
+def model_error_markdown(table: list[dict[str, Any]], metric: str, draws: int) -> str:
+    lines = [
+        "## Closing the identification loop: performance lost to model error",
+        "",
+        f"{draws} randomised true plants (seeds {MODEL_ERROR_SEEDS}+); on each, the LuGre identification "
+        "experiments (scripts/identify.py lugre), then every controller on that plant's episode designed on "
+        "the nominal preset, on the identified model and on the true parameters. Loss = per-plant difference "
+        f"of {metric} against the true-parameter design (positive = worse), 95 % interval.",
+        "",
+        f"| controller | design | {metric} | loss vs true design |",
+        "|---|---|---|---|",
+    ]
+    for r in table:
+        loss = (
+            f"{r['loss']:+.4g} [{r['loss_low']:.3g}, {r['loss_high']:.3g}]" if "loss" in r else "(reference)"
+        )
+        lines.append(
+            f"| {r['controller']} | {r['design']} | {r['mean']:.4g} [{r['ci_low']:.3g}, "
+            f"{r['ci_high']:.3g}] | {loss} |"
+        )
+    return "\n".join([*lines, "", "![model error](model_error.png)", ""])
+
+
 def run(
     scenario: str,
     controllers: list[str] | None,
@@ -250,9 +375,10 @@ def run(
     joint: int = 20,
     workers: int = 1,
     progress: bool = True,
+    model_error_draws: int = 10,
 ) -> tuple[list[dict[str, Any]], str]:
-    """Run the study into out/ (episodes.csv, sim2real.csv, sim2real.png, sim2real.md); returns the table
-    and the markdown."""
+    """Run the study into out/ (episodes.csv, sim2real.csv, sim2real.png, sim2real.md, and the closing-the-
+    loop study model_error.csv / .png); returns the table and the markdown."""
     import csv
     import io
 
@@ -302,7 +428,19 @@ def run(
         ],
         "",
         "![robustness curves](sim2real.png)",
+        "",
     ]
+    if model_error_draws:
+        classical = [n for n in names if n in registry.BUILTIN and n != "Zero"]
+        me = model_error_table(model_error(scenario, classical, model_error_draws, progress))
+        buf = io.StringIO()
+        fields = ["controller", "design", "mean", "ci_low", "ci_high", "loss", "loss_low", "loss_high"]
+        w = csv.DictWriter(buf, fieldnames=fields, restval="", lineterminator="\n")
+        w.writeheader()
+        w.writerows(me)
+        engine._atomic_write(out / "model_error.csv", buf.getvalue())
+        plot_model_error(me, sc.main_metric, out / "model_error.png")
+        md.append(model_error_markdown(me, sc.main_metric, model_error_draws))
     text = "\n".join(md) + "\n"
     engine._atomic_write(out / "sim2real.md", text)
     return table, text

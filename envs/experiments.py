@@ -34,13 +34,19 @@ class Rig:
     clock: float = 0.0  # log time (s): continues across the experiment's parts
 
     @classmethod
-    def of(cls, plant: str, seed: int = 0, randomize: bool = False, overrides: dict | None = None) -> Rig:
-        spec = plant_spec(plant, overrides)
+    def of(
+        cls, plant: str | PlantSpec, seed: int = 0, randomize: bool = False, overrides: dict | None = None
+    ) -> Rig:
+        """The rig of a plant preset (or a built spec, e.g. a scenario's): the nominal plant, or with
+        `randomize` the draw of `seed`, the same draw an env makes for that episode seed."""
+        spec = plant_spec(plant, overrides) if isinstance(plant, str) else plant
         params = EpisodeParams.draw(spec, seed) if randomize else EpisodeParams.nominal(spec)
         params.validate(spec)
         sim = PlantSim(spec)
         sim.reset(params, seed=seed)
-        prov = [f"simulated plant {plant}, seed {seed}, randomize {randomize} (frictiongym.envs.experiments)"]
+        prov = [
+            f"simulated plant {spec.name}, seed {seed}, randomize {randomize} (frictiongym.envs.experiments)"
+        ]
         return cls(sim, spec_with(spec, params), params, prov)
 
     @property
@@ -182,7 +188,7 @@ class Protocol:
     breakaway: bool  # False where a ramp measures only the motor side (a compliant shaft)
 
 
-def protocol(plant: str) -> Protocol:
+def protocol(plant: str | PlantSpec) -> Protocol:
     """Default experiments: hold speeds over the range the document worked in, long enough to settle, a
     breakaway ramp at 1/20 of the nominal static level per second, presliding at 1/10 of it (nearly
     linear bristles). On the flexible servo the weak shaft (resonance near 4 rad/s, lightly damped)
@@ -190,7 +196,8 @@ def protocol(plant: str) -> Protocol:
     the motor side only): no breakaway there, the static levels come from the holds."""
     from .identification import drive_friction
 
-    spec = plant_spec(plant)
+    spec = plant_spec(plant) if isinstance(plant, str) else plant
+    plant = spec.name
     nominal = drive_friction(spec)
     fs = max(nominal.static_pos, nominal.static_neg)
     sensor = [s for s in spec.sensors if s.joint == spec.actuator_joint]

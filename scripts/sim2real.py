@@ -3,12 +3,15 @@ on plants shifted one axis at a time (friction level, asymmetry, Stribeck veloci
 inertia, delay up to one control period) and on joint shifts, in- and out-of-distribution.
 
     python scripts/sim2real.py [--scenario m220_reversal_tracking] [--models DIR ...] [--controllers ...]
-                               [--seeds 10] [--points 5] [--joint 20] [--workers N] [--out out/sim2real]
+                               [--seeds 10] [--points 5] [--joint 20] [--model-error 10] [--workers N]
+                               [--out out/sim2real]
 
 Writes OUT/episodes.csv (resumable), sim2real.csv (controller, axis, shift, metric mean and 95 % CI),
-sim2real.png (robustness curves) and sim2real.md (which controller keeps its lead where, and where each
-breaks). Default models: the committed sim-to-real agents (trained without randomisation, with the
-nominal ranges and with wide ranges).
+sim2real.png (robustness curves), model_error.csv/.png (classical baselines designed on the identified
+model of randomised true plants vs on the true parameters: the closing-the-loop study of identification)
+and sim2real.md (which controller keeps its lead where, where each breaks, what model error costs).
+Default models: the committed agents (agents/models/sim2real: trained without randomisation and with
+wide ranges; agents/models/headline: with the nominal ranges); those that apply to the scenario run.
 """
 
 from __future__ import annotations
@@ -34,12 +37,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=int, default=10, help="episodes per shift value (default 10)")
     ap.add_argument("--points", type=int, default=5, help="shift values per axis (default 5)")
     ap.add_argument("--joint", type=int, default=20, help="joint-shift draws per set (default 20)")
+    ap.add_argument(
+        "--model-error", type=int, default=10, help="true plants of the identification closing-the-loop study"
+    )
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--out", type=Path, default=Path("out/sim2real"))
     args = ap.parse_args(argv)
     if min(args.seeds, args.points - 1, args.joint + 1, args.workers) < 1:
         ap.error("--seeds >= 1, --points >= 2, --joint >= 0, --workers >= 1")
-    models = tuple(str(m) for m in (args.models if args.models is not None else committed_models("sim2real")))
+    default = [*committed_models("sim2real"), *committed_models("headline")]  # those that apply are run
+    models = tuple(str(m) for m in (args.models if args.models is not None else default))
     try:
         _, text = sim2real.run(
             args.scenario,

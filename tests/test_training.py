@@ -225,7 +225,7 @@ def test_sim2real_on_a_tiny_grid(tmp_path):
         "--points",
         "2",
     ]
-    args += ["--joint", "1", "--workers", "1", "--out", str(tmp_path)]
+    args += ["--joint", "1", "--model-error", "1", "--workers", "1", "--out", str(tmp_path)]
     assert main(args) == 0
     rows = list(csv.DictReader((tmp_path / "sim2real.csv").read_text().splitlines()))
     axes = {r["axis"] for r in rows}
@@ -239,7 +239,10 @@ def test_sim2real_on_a_tiny_grid(tmp_path):
     # more friction, larger final error of PD (its stick band [θ_L, θ_H] widens, seed 001 eq. 6)
     assert pd[("friction_scale", "1.5")] > pd[("friction_scale", "0.5")]
     assert (tmp_path / "sim2real.png").stat().st_size > 0
-    assert "Where each controller keeps its lead" in (tmp_path / "sim2real.md").read_text()
+    md = (tmp_path / "sim2real.md").read_text()
+    assert "Where each controller keeps its lead" in md and "performance lost to model error" in md
+    designs = [r["design"] for r in csv.DictReader((tmp_path / "model_error.csv").read_text().splitlines())]
+    assert sorted(designs) == ["identified", "nominal", "true"]  # PD, on one true plant
     n = len((tmp_path / "episodes.csv").read_text().splitlines())
     episodes, _ = sim2real.plan("kang_regulation", 1, 2, 1)
     assert n == 1 + 2 * len(episodes)
