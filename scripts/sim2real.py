@@ -57,6 +57,7 @@ def main(argv: list[str] | None = None) -> int:
             args.points,
             args.joint,
             args.workers,
+            model_error_draws=args.model_error,
         )
     except (RunMismatch, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)

@@ -92,3 +92,34 @@ def test_every_classical_baseline_beats_zero_on_every_scenario(suite):
         for r in rows:
             if r["controller"] != "Zero":
                 assert r["main"][0] < zero, (sc, r["controller"], r["main"][0], zero)
+
+
+def test_verdict_requires_a_paired_win_bounded_effort_and_no_new_limit_cycle():
+    """A learned controller beats the baseline only with a paired interval below 0, effort_rms at most
+    1.2x and limit_cycle_amp at most 1.2x the baseline's plus the settling band; each failure is named."""
+    from frictiongym.envs.scenario import load_scenario
+
+    sc = load_scenario("kang_regulation")
+
+    def row(name, effort, lc, vs=None):
+        m = {k: (0.0, 0.0, 0.0) for k in ("effort_rms", "limit_cycle_amp")}
+        m["effort_rms"], m["limit_cycle_amp"] = (effort,) * 3, (lc,) * 3
+        return {"controller": name, "baseline": "RDFC", "metrics": m, "vs_baseline": vs}
+
+    win = {"diff": -1e-4, "diff_lo": -2e-4, "diff_hi": -5e-5, "p_improve": 0.9}
+    tie = {"diff": -1e-4, "diff_lo": -2e-4, "diff_hi": 1e-5, "p_improve": 0.6}
+    table = {
+        "kang_regulation": [
+            row("RDFC", 1.0, 0.001),
+            row("good", 1.19, 0.001, win),
+            row("chatter", 1.5, 0.001, win),
+            row("cycle", 1.0, 0.01, win),
+            row("unsure", 1.0, 0.001, tie),
+            row("PID", 1.0, 0.001, tie),  # a built-in: not judged
+        ]
+    }
+    got = {v["controller"]: v for v in leaderboard.verdicts(table, {"kang_regulation": sc})}
+    assert set(got) == {"good", "chatter", "cycle", "unsure"}
+    assert got["good"]["beats_baseline"] and not got["chatter"]["beats_baseline"]
+    assert got["chatter"]["why_not"] == "effort 1.50x"
+    assert got["cycle"]["why_not"].startswith("limit cycle") and "exclude 0" in got["unsure"]["why_not"]

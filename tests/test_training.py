@@ -241,6 +241,7 @@ def test_sim2real_on_a_tiny_grid(tmp_path):
     assert (tmp_path / "sim2real.png").stat().st_size > 0
     md = (tmp_path / "sim2real.md").read_text()
     assert "Where each controller keeps its lead" in md and "performance lost to model error" in md
+    assert "1 randomised true plants" in md
     designs = [r["design"] for r in csv.DictReader((tmp_path / "model_error.csv").read_text().splitlines())]
     assert sorted(designs) == ["identified", "nominal", "true"]  # PD, on one true plant
     n = len((tmp_path / "episodes.csv").read_text().splitlines())
