@@ -161,17 +161,60 @@ def chunks(jobs: list[Job], size: int = CHUNK) -> list[list[Job]]:
     return [g[i : i + size] for g in groups.values() for i in range(0, len(g), size)]
 
 
+@dataclass(frozen=True)
+class Ray:
+    """Run the jobs as Ray tasks: on a local Ray instance with `workers` CPUs, or on the cluster at
+    `address` ("auto", "ray://host:10001", "host:6379"). Results are the same rows as the local pool's
+    (every job is a function of its seed); a task whose worker dies is retried (max_retries), and its rows
+    are written once, by this process, when the task returns."""
+
+    address: str | None = None
+    max_retries: int = 3
+
+
+def _ray_init(workers: int, address: str | None) -> None:
+    import ray
+
+    if ray.is_initialized():
+        return
+    env = {"env_vars": dict.fromkeys(THREAD_VARS, "1")}  # one thread per task
+    if address is None:  # local: no dashboard, nothing listening beyond loopback
+        ray.init(num_cpus=workers, include_dashboard=False, runtime_env=env, log_to_driver=False)
+    else:
+        ray.init(address=address, runtime_env=env, log_to_driver=False)
+
+
+def _run_chunk_ray(jobs: list[Job], prov: dict[str, str], models: tuple[str, ...]) -> list[dict[str, Any]]:
+    _init_worker()
+    return run_chunk(jobs, prov, models)
+
+
 def run_jobs(
     jobs: list[Job],
     workers: int,
     on_rows: Callable[[list[dict[str, Any]]], None],
     progress: bool = True,
     models: tuple[str, ...] = (),
+    ray: Ray | None = None,
 ) -> None:
-    """Run jobs (workers = 1: in this process) and hand each finished chunk's rows to on_rows."""
+    """Run jobs (workers = 1: in this process; `ray`: as Ray tasks) and hand each finished chunk's rows to
+    on_rows."""
     prov = provenance()
     todo = chunks(jobs)
     bar = tqdm(total=len(jobs), desc="episodes", unit="ep", disable=not progress)
+    if ray is not None:
+        import ray as ray_
+
+        _ray_init(workers, ray.address)
+        task = ray_.remote(num_cpus=1, max_retries=ray.max_retries)(_run_chunk_ray)
+        pending = {task.remote(chunk, prov, models): len(chunk) for chunk in todo}
+        while pending:
+            done, _ = ray_.wait(list(pending), num_returns=1)
+            for ref in done:
+                on_rows(ray_.get(ref))
+                bar.update(pending.pop(ref))
+        bar.close()
+        return
     if workers <= 1 or len(todo) <= 1:
         for chunk in todo:
             on_rows(run_chunk(chunk, prov, models))
@@ -279,13 +322,15 @@ def evaluate_to(
     workers: int = 1,
     progress: bool = True,
     models: tuple[str, ...] = (),
+    ray: Ray | None = None,
 ) -> tuple[list[dict[str, str]], list[tuple[str, str, str]]]:
     """Run every applicable (controller, episode) job not yet in DIR/episodes.csv; returns all rows (in
-    canonical order) and the skipped (controller, scenario, reason) pairs."""
+    canonical order) and the skipped (controller, scenario, reason) pairs. The backend (`workers`, `ray`)
+    is not part of the run's options: a run can be resumed on another backend."""
     store = EpisodesFile(out, options)
     jobs, skipped = plan(controllers, episodes, models)
     done = store.done()
-    run_jobs([j for j in jobs if j.key() not in done], workers, store.append, progress, models)
+    run_jobs([j for j in jobs if j.key() not in done], workers, store.append, progress, models, ray)
     return store.finish(jobs, main_metrics(episodes)), skipped
 
 

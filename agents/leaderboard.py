@@ -365,6 +365,7 @@ def run(
     workers: int = 1,
     episodes: list[Episode] | None = None,
     models: tuple[str, ...] = (),
+    ray: engine.Ray | None = None,
 ) -> tuple[list[EpisodeResult], dict[str, list[dict]]]:
     """Evaluate (the suite, or the given episodes) with the Zero reference always included, and
     summarize. With out: results go to out/episodes.csv incrementally (a rerun resumes), then
@@ -380,11 +381,11 @@ def run(
     if out is None:
         jobs, skipped = engine.plan(names, episodes, models)
         rows: list[dict[str, Any]] = []
-        engine.run_jobs(jobs, workers, rows.extend, progress, models)
+        engine.run_jobs(jobs, workers, rows.extend, progress, models, ray)
         rows = engine.canonical(rows, jobs, engine.main_metrics(episodes))
     else:
         options = {"episodes": [asdict(e) for e in episodes], "controllers": names, "models": list(models)}
-        rows, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models)
+        rows, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models, ray)
     for name, scenario, reason in skipped:
         if progress:
             print(f"skipped {name} on {scenario}: {reason}")

@@ -376,6 +376,7 @@ def run(
     workers: int = 1,
     progress: bool = True,
     model_error_draws: int = 10,
+    ray: engine.Ray | None = None,
 ) -> tuple[list[dict[str, Any]], str]:
     """Run the study into out/ (episodes.csv, sim2real.csv, sim2real.png, sim2real.md, and the closing-the-
     loop study model_error.csv / .png); returns the table and the markdown."""
@@ -395,7 +396,7 @@ def run(
         "controllers": names,
         "models": list(models),
     }
-    rows, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models)
+    rows, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models, ray)
     table = summarize(rows, scenario)
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=list(table[0]), lineterminator="\n")

@@ -499,6 +499,7 @@ class TrainingRun:
         self.best: dict[str, float] | None = None
         self.next_eval = cfg.eval_every_steps
         self.wall_before, self.stopped_early = 0.0, False
+        self.reporter: Callable[[dict[str, float]], None] | None = None  # e.g. Ray Tune's report
 
     def elapsed(self) -> float:
         return self.wall_before + time.monotonic() - self.t0
@@ -540,6 +541,8 @@ class TrainingRun:
             self.best = row
             _save_model(model, model.get_env(), self.out)
         _atomic(self.out / "validation.csv", lambda p: p.write_text(_csv(self.history)))
+        if self.reporter is not None:
+            self.reporter(row)
 
     # ----------------------------------------------------------------------------- checkpoints
     def checkpoint(self, model: Any) -> None:

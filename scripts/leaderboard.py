@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from frictiongym.agents import leaderboard
-from frictiongym.agents.engine import RunMismatch
+from frictiongym.agents.engine import Ray, RunMismatch
 from frictiongym.agents.registry import committed_models
 from frictiongym.envs.scenario import scenario_names
 from frictiongym.envs.suites import Episode, suite_names
@@ -55,8 +55,13 @@ def main(argv: list[str] | None = None) -> int:
         help="saved-model folders (manifest.yaml); default: the committed ones (agents/models/headline)",
     )
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
+    ap.add_argument("--backend", choices=["local", "ray"], default="local", help="process pool or Ray tasks")
+    ap.add_argument("--address", help="Ray cluster to join (default: a local Ray on --workers CPUs)")
     ap.add_argument("--out", type=Path, default=Path("out/leaderboard"))
     args = ap.parse_args(argv)
+    if args.address and args.backend != "ray":
+        ap.error("--address goes with --backend ray")
+    ray = Ray(args.address) if args.backend == "ray" else None
     if args.scenarios and not args.seeds:
         ap.error("--scenarios needs --seeds")
     if args.seeds and not args.scenarios:
@@ -73,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     try:
         leaderboard.run(
-            suite, args.controllers, args.out, workers=args.workers, episodes=episodes, models=models
+            suite, args.controllers, args.out, workers=args.workers, episodes=episodes, models=models, ray=ray
         )
     except (RunMismatch, ValueError) as e:  # other options into --out; unknown controllers or bad models
         print(f"error: {e}", file=sys.stderr)

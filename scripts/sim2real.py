@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 
 from frictiongym.agents import sim2real
-from frictiongym.agents.engine import RunMismatch
+from frictiongym.agents.engine import Ray, RunMismatch
 from frictiongym.agents.registry import committed_models
 from frictiongym.envs.scenario import scenario_names
 
@@ -41,8 +41,13 @@ def main(argv: list[str] | None = None) -> int:
         "--model-error", type=int, default=10, help="true plants of the identification closing-the-loop study"
     )
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--backend", choices=["local", "ray"], default="local", help="process pool or Ray tasks")
+    ap.add_argument("--address", help="Ray cluster to join (default: a local Ray on --workers CPUs)")
     ap.add_argument("--out", type=Path, default=Path("out/sim2real"))
     args = ap.parse_args(argv)
+    if args.address and args.backend != "ray":
+        ap.error("--address goes with --backend ray")
+    ray = Ray(args.address) if args.backend == "ray" else None
     if min(args.seeds, args.points - 1, args.joint + 1, args.workers) < 1:
         ap.error("--seeds >= 1, --points >= 2, --joint >= 0, --workers >= 1")
     default = [*committed_models("sim2real"), *committed_models("headline")]  # those that apply are run
@@ -58,6 +63,7 @@ def main(argv: list[str] | None = None) -> int:
             args.joint,
             args.workers,
             model_error_draws=args.model_error,
+            ray=ray,
         )
     except (RunMismatch, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)

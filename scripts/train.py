@@ -2,12 +2,18 @@
 
     python scripts/train.py --config configs/agents/residual_sac.yaml [--scenario S] [--seed N ...]
                             [--workers W] [--out DIR] [--resume]
+    python scripts/train.py --sweep configs/sweeps/residual_sac_alpha.yaml [--address ADDR] [--workers W]
 
 Each (scenario, seed) run writes DIR/<name>/<scenario>/seed<N>/: the model selected on the validation
 suite with its frozen normalisation statistics, manifest.yaml (algorithm, scenario, base controller, α,
 hyper-parameters, seed, steps, wall time, this command, package version, validation score),
 validation.csv, training_curve.png, TensorBoard logs (tb/) and a checkpoint for --resume. The folder
 is a leaderboard entry: python scripts/leaderboard.py --models DIR/<name>/<scenario>/seed<N>
+
+A sweep (seeds x a grid, or an Optuna search, over config values; configs/sweeps/) runs its trials on
+Ray Tune: a local Ray on --workers CPUs, or the cluster at --address. Every trial writes a model folder
+DIR/<sweep>/<scenario>/seed<N>-<trial>/ and reports its validation score to Tune; DIR/<sweep>.csv lists
+the trials. Needs pip install -e .[distributed].
 """
 
 from __future__ import annotations
@@ -33,6 +39,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.workers < 1 or any(s < 0 for s in args.seed):
         ap.error("--workers must be >= 1 and seeds >= 0")
+    if args.sweep:
+        return sweep(args)
     try:
         cfgs = load_config(args.config, args.scenario)
         manifests = train_many(cfgs, args.seed, args.out, args.resume, args.workers)
@@ -48,6 +56,29 @@ def main(argv: list[str] | None = None) -> int:
             f"effort_rms {v['effort_rms']:.4g} ({b['effort_rms']:.4g})"
         )
     return 0
+
+
+def sweep(args: argparse.Namespace) -> int:
+    """Run a sweep on Ray Tune and write DIR/<sweep>.csv (one row per trial)."""
+    import csv
+
+    from frictiongym.agents.sweeps import METRIC, load_sweep, run_sweep
+
+    try:
+        s = load_sweep(args.sweep)
+    except ConfigError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    rows = run_sweep(s, args.out, args.address, args.workers)
+    args.out.mkdir(parents=True, exist_ok=True)
+    fields = sorted({k for r in rows for k in r})
+    with open(args.out / f"{s.name}.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields, lineterminator="\n")
+        w.writeheader()
+        w.writerows(sorted(rows, key=lambda r: r[METRIC]))
+    for r in sorted(rows, key=lambda r: r[METRIC]):
+        print(", ".join(f"{k}={r[k]}" for k in fields if k != "folder"), r["folder"])
+    return 0 if not any(r["error"] for r in rows) else 1
 
 
 if __name__ == "__main__":
