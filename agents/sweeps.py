@@ -26,7 +26,7 @@ from typing import Any
 
 from frictiongym.envs.config import ConfigError, Node, load_yaml, preset_path
 
-from .training import RunConfig, TrainingRun, _deep_merge, _raw_config, _run_config, load_config, run_dir
+from .training import RunConfig, TrainingRun, _deep_merge, _raw_config, _run_config, load_config
 
 SEARCHES = ("grid", "optuna")
 DISTRIBUTIONS = {"grid": "grid", "uniform": "uniform", "loguniform": "loguniform", "choice": "choice"}
@@ -127,7 +127,7 @@ def run_sweep(sweep: Sweep, out: Path, address: str | None = None, workers: int 
         seed = params.pop("seed")
         cfg = trial_config(sweep, params)
         trial = tune.get_context().get_trial_id()
-        folder = run_dir(out / sweep.name, cfg, seed).with_name(f"seed{seed}-{trial}")
+        folder = out / sweep.name / sweep.scenario / f"seed{seed}-{trial}"
         run = TrainingRun(cfg, seed, folder, command, progress=False)
         run.reporter = lambda row: tune.report(
             {

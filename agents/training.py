@@ -65,7 +65,7 @@ MODEL, NORMALIZER, MANIFEST = "model.zip", "vecnormalize.pkl", "manifest.yaml"
 class RunConfig:
     """One scenario's resolved training settings (defaults + the scenario's entry)."""
 
-    name: str  # leaderboard name prefix; the model is called f"{name}-s{seed}"
+    name: str  # leaderboard name prefix; the model is called f"{name}-{scenario}-s{seed}"
     algorithm: str
     scenario: str
     total_timesteps: int
@@ -489,7 +489,7 @@ class TrainingRun:
 
     def __init__(self, cfg: RunConfig, seed: int, out: Path, command: str, progress: bool = True):
         self.cfg, self.seed, self.out, self.command, self.progress = cfg, seed, Path(out), command, progress
-        self.name = f"{cfg.name}-s{seed}"
+        self.name = f"{cfg.name}-{cfg.scenario}-s{seed}"  # unique across a config's scenarios
         self.episodes = validation_episodes(cfg.scenario)[: cfg.eval_episodes]
         if not self.episodes:
             raise ConfigError("scenario", f"{cfg.scenario} is not in the {VALIDATION_SUITE} suite")
@@ -708,6 +708,25 @@ def plot_curve(
 # ------------------------------------------------------------------------------------------- runs
 def run_dir(out: Path, cfg: RunConfig, seed: int) -> Path:
     return Path(out) / cfg.name / cfg.scenario / f"seed{seed}"
+
+
+EXPORTED = (MODEL, NORMALIZER, MANIFEST, "validation.csv", "training_curve.png")
+
+
+def export_model(run: Path, dest: Path) -> Path:
+    """Copy a finished run's model folder (model, statistics, manifest, validation record, curve; not the
+    checkpoint or logs) to dest/<name>/, e.g. into agents/models/headline/ to commit it."""
+    import shutil
+
+    from frictiongym.envs.config import Node
+
+    m = Node(load_yaml(Path(run) / MANIFEST), str(Path(run) / MANIFEST))
+    folder = Path(dest) / m["name"]
+    folder.mkdir(parents=True, exist_ok=True)
+    for f in EXPORTED:
+        if (Path(run) / f).exists():
+            shutil.copy2(Path(run) / f, folder / f)
+    return folder
 
 
 def train_one(args: tuple[RunConfig, int, str, str, bool, bool]) -> dict[str, Any]:

@@ -3,6 +3,7 @@
     python scripts/train.py --config configs/agents/residual_sac.yaml [--scenario S] [--seed N ...]
                             [--workers W] [--out DIR] [--resume]
     python scripts/train.py --sweep configs/sweeps/residual_sac_alpha.yaml [--address ADDR] [--workers W]
+    python scripts/train.py --export RUN_DIR ... --out agents/models/headline
 
 Each (scenario, seed) run writes DIR/<name>/<scenario>/seed<N>/: the model selected on the validation
 suite with its frozen normalisation statistics, manifest.yaml (algorithm, scenario, base controller, α,
@@ -22,7 +23,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from frictiongym.agents.training import config_names, load_config, train_many
+from frictiongym.agents.training import config_names, export_model, load_config, train_many
 from frictiongym.envs.config import ConfigError
 
 
@@ -41,6 +42,10 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--workers must be >= 1 and seeds >= 0")
     if args.sweep:
         return sweep(args)
+    if args.export:
+        for run in args.export:
+            print(export_model(run, args.out))
+        return 0
     try:
         cfgs = load_config(args.config, args.scenario)
         manifests = train_many(cfgs, args.seed, args.out, args.resume, args.workers)

@@ -42,7 +42,8 @@ def test_ray_rows_equal_the_local_pool_and_serial_bit_for_bit(tmp_path, local_ra
     serial = _run(tmp_path / "serial", workers=1)
     pool = _run(tmp_path / "pool", workers=2)
     on_ray = _run(tmp_path / "ray", workers=2, ray=engine.Ray())
-    assert serial == pool == on_ray and serial.count("\n") == 1 + len(CONTROLLERS) * len(EPISODES)
+    # Zero and PID apply to the flexible servo's speed scenario (PD does not): 12 rows and the header
+    assert serial == pool == on_ray and serial.count("\n") == 1 + 2 * len(EPISODES)
 
 
 def _ray_task_pids() -> list[int]:
@@ -105,3 +106,40 @@ def test_a_killed_driver_resumes_from_the_results_file(tmp_path):
     assert 2 <= partial < 30, partial
     subprocess.run([*script, "--backend", "ray", "--out", str(out)], check=True, capture_output=True)
     assert (out / "episodes.csv").read_text() == (tmp_path / "clean" / "episodes.csv").read_text()
+
+
+def test_a_grid_sweep_on_tune_writes_a_model_folder_per_trial(tmp_path, local_ray):
+    """scripts/train.py --sweep: seeds x a grid on Ray Tune; every trial is a normal training run with its
+    manifest, and reports its validation metric (the trials' table)."""
+    import yaml
+
+    from frictiongym.scripts.train import main
+
+    cfg = {
+        "name": "SweepSmoke",
+        "algorithm": "SAC",
+        "defaults": {
+            "total_timesteps": 128,
+            "validation": {"every_steps": 128, "episodes": 1, "max_effort_ratio": 100.0},
+            "hyperparams": {"learning_starts": 0, "batch_size": 16, "buffer_size": 500},
+        },
+        "scenarios": {"flexible_speed_step": {"residual": {"base": "PID", "alpha": 0.1}}},
+    }
+    (tmp_path / "cfg.yaml").write_text(yaml.safe_dump(cfg))
+    sweep = {
+        "config": str(tmp_path / "cfg.yaml"),
+        "scenario": "flexible_speed_step",
+        "seeds": [0, 1],
+        "search": "grid",
+        "space": {"residual.alpha": {"grid": [0.05]}},
+    }
+    (tmp_path / "sweep.yaml").write_text(yaml.safe_dump(sweep))
+    assert (
+        main(["--sweep", str(tmp_path / "sweep.yaml"), "--workers", "2", "--out", str(tmp_path / "out")]) == 0
+    )
+    manifests = sorted((tmp_path / "out").glob("sweep/flexible_speed_step/*/manifest.yaml"))
+    assert len(manifests) == 2
+    got = {yaml.safe_load(m.read_text())["seed"] for m in manifests}
+    assert got == {0, 1} and all(yaml.safe_load(m.read_text())["alpha"] == 0.05 for m in manifests)
+    table = (tmp_path / "out" / "sweep.csv").read_text().splitlines()
+    assert len(table) == 3 and "validation_main" in table[0]

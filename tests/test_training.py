@@ -20,10 +20,12 @@ from frictiongym.agents.evaluate import EnvCache, run_episode
 from frictiongym.agents.learned import PolicyInputs, SB3Policy
 from frictiongym.agents.settings import knowledge_defaults
 from frictiongym.agents.training import (
+    EXPORTED,
     SEEDS_PER_RUN,
     TRAINING_SEEDS,
     TrainingRun,
     build_model,
+    export_model,
     load_config,
     make_env,
     validation_episodes,
@@ -162,9 +164,11 @@ def test_asymmetric_actor_ignores_the_privileged_block(tmp_path):
 def test_registry_skips_scenarios_with_another_observation(tmp_path):
     """A model trained on the flexible servo is planned on its scenarios and skipped on others, with the
     reason named (plant, observation shape)."""
-    manifest, folder = train(tmp_path, "PPO")
+    manifest, run = train(tmp_path, "PPO")
+    folder = export_model(run, tmp_path / "committed")  # what gets committed: no checkpoint, no logs
+    assert sorted(p.name for p in folder.iterdir()) == sorted(EXPORTED)
     eps = [e for e in load_suite("validation") if e.scenario in (SCENARIO, "kang_regulation")][::5]
-    jobs, skipped = plan([manifest["name"]], eps, (str(folder),))
+    jobs, skipped = plan([manifest["name"]], eps, (str(tmp_path / "committed"),))
     assert {j.scenario for j in jobs} == {SCENARIO}
     assert [s[1] for s in skipped] == ["kang_regulation"] and "observes shape" in skipped[0][2]
 
