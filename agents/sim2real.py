@@ -153,48 +153,52 @@ def summarize(rows: list[dict[str, str]], scenario: str) -> list[dict[str, Any]]
     return out
 
 
-def findings(table: list[dict[str, Any]], scenario: str, nominal_controllers: list[str]) -> list[str]:
-    """Markdown bullets computed from the table: who leads on each axis, and where each controller breaks
-    (its score falls below half its nominal score, or below 0)."""
-    by = defaultdict(dict)
+DEGRADED = 1.5  # "breaks": the main metric exceeds 1.5x the controller's own value on the nominal plant
+
+
+def findings(table: list[dict[str, Any]], scenario: str, controllers: list[str]) -> list[str]:
+    """Markdown bullets computed from the table, per axis: the best controller at each shift, where each
+    learned (non built-in) controller loses to the best classical baseline (its lead lost), and where any
+    controller breaks (main metric above DEGRADED x its own nominal-plant value)."""
+    by: dict[str, dict[tuple[str, float], dict[str, Any]]] = defaultdict(dict)
     for r in table:
         by[r["axis"]][(r["controller"], r["shift"])] = r
-    lines = []
-    nominal_score = {}
-    for name in nominal_controllers:
-        vals = [r["score"] for r in table if r["controller"] == name and r["axis"] == "friction_scale"]
-        near = [
-            r
-            for r in table
-            if r["controller"] == name and r["axis"] == "friction_scale" and r["shift"] == 1.0
+    classical = [c for c in controllers if c in registry.BUILTIN]
+    learned = [c for c in controllers if c not in registry.BUILTIN]
+    nominal = {}
+    for c in controllers:
+        at = [
+            r for r in table if r["controller"] == c and r["axis"] == "friction_scale" and r["shift"] == 1.0
         ]
-        nominal_score[name] = near[0]["score"] if near else (max(vals) if vals else math.nan)
+        nominal[c] = at[0]["mean"] if at else math.nan
+    lines = []
     for axis, cells in by.items():
         shifts = sorted({s for _, s in cells})
-        leaders = []
+        leaders, lost, broken = [], [], []
         for s in shifts:
-            here = [(cells[(c, s)]["mean"], c) for c in nominal_controllers if (c, s) in cells]
+            here = [(cells[(c, s)]["mean"], c) for c in controllers if (c, s) in cells]
             if here:
                 leaders.append(f"{_fmt_shift(axis, s)}: {min(here)[1]}")
-        broken = []
-        for c in nominal_controllers:
-            bad = [
+        for c in learned:
+            worse = [
                 s
                 for s in shifts
                 if (c, s) in cells
-                and (
-                    cells[(c, s)]["score"] < 0
-                    or cells[(c, s)]["score"] < 0.5 * nominal_score.get(c, math.nan)
-                )
+                and any((b, s) in cells and cells[(b, s)]["mean"] < cells[(c, s)]["mean"] for b in classical)
             ]
+            if worse:
+                lost.append(f"{c} at {', '.join(_fmt_shift(axis, s) for s in worse)}")
+        for c in controllers:
+            bad = [s for s in shifts if (c, s) in cells and cells[(c, s)]["mean"] > DEGRADED * nominal[c]]
             if bad:
                 broken.append(f"{c} at {', '.join(_fmt_shift(axis, s) for s in bad)}")
         lines.append(
             f"- **{axis}**: best by mean {'; '.join(leaders)}."
+            + (f" Learned behind a classical baseline: {'; '.join(lost)}." if lost else "")
             + (
-                f" Breaks (score < half its nominal, or < 0): {'; '.join(broken)}."
+                f" Breaks (main metric > {DEGRADED}x its nominal-plant value): {'; '.join(broken)}."
                 if broken
-                else " No breaks."
+                else " No controller breaks."
             )
         )
     return lines
