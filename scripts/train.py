@@ -29,12 +29,14 @@ from frictiongym.envs.config import ConfigError
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument(
-        "--config", required=True, help=f"a YAML path or a name of configs/agents/ {config_names()}"
-    )
+    what = ap.add_mutually_exclusive_group(required=True)
+    what.add_argument("--config", help=f"a YAML path or a name of configs/agents/ {config_names()}")
+    what.add_argument("--sweep", help="a YAML path or a name of configs/sweeps/ (runs on Ray Tune)")
+    what.add_argument("--export", nargs="+", type=Path, help="copy finished run folders to --out (to commit)")
+    ap.add_argument("--address", help="with --sweep: the Ray cluster to run on (default: a local Ray)")
     ap.add_argument("--scenario", help="train only this scenario of the config")
     ap.add_argument("--seed", type=int, nargs="+", default=[0], help="training seeds (default: 0)")
-    ap.add_argument("--workers", type=int, default=1, help="runs in parallel, one process each (default 1)")
+    ap.add_argument("--workers", type=int, default=1, help="parallel runs or trials, one process each")
     ap.add_argument("--out", type=Path, default=Path("out/models"))
     ap.add_argument("--resume", action="store_true", help="continue the runs' checkpoints")
     args = ap.parse_args(argv)
