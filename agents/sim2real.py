@@ -156,7 +156,7 @@ def summarize(rows: list[dict[str, str]], scenario: str) -> list[dict[str, Any]]
 DEGRADED = 1.5  # "breaks": the main metric exceeds 1.5x the controller's own value on the nominal plant
 
 
-def findings(table: list[dict[str, Any]], scenario: str, controllers: list[str]) -> list[str]:
+def findings(table: list[dict[str, Any]], controllers: list[str]) -> list[str]:
     """Markdown bullets computed from the table, per axis: the best controller at each shift, where each
     learned (non built-in) controller loses to the best classical baseline (its lead lost), and where any
     controller breaks (main metric above DEGRADED x its own nominal-plant value)."""
@@ -420,7 +420,7 @@ def run(
         "",
         "## Where each controller keeps its lead, and where it breaks",
         "",
-        *findings(table, scenario, ran),
+        *findings(table, ran),
         "",
         "## Joint shifts",
         "",
