@@ -124,8 +124,9 @@ def run_sweep(sweep: Sweep, out: Path, address: str | None = None, workers: int 
         import torch
 
         torch.set_num_threads(1)
-        seed = params.pop("seed")
-        cfg = trial_config(sweep, params)
+        values = dict(params)  # Tune keeps `params` as the trial's config: do not change it
+        seed = values.pop("seed")
+        cfg = trial_config(sweep, values)
         trial = tune.get_context().get_trial_id()
         folder = out / sweep.name / sweep.scenario / f"seed{seed}-{trial}"
         run = TrainingRun(cfg, seed, folder, command, progress=False)

@@ -142,4 +142,4 @@ def test_a_grid_sweep_on_tune_writes_a_model_folder_per_trial(tmp_path, local_ra
     got = {yaml.safe_load(m.read_text())["seed"] for m in manifests}
     assert got == {0, 1} and all(yaml.safe_load(m.read_text())["alpha"] == 0.05 for m in manifests)
     table = (tmp_path / "out" / "sweep.csv").read_text().splitlines()
-    assert len(table) == 3 and "validation_main" in table[0]
+    assert len(table) == 3 and "validation_main" in table[0] and "seed" in table[0].split(",")
