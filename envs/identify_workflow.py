@@ -18,7 +18,7 @@ import numpy as np
 import yaml
 
 from . import experiments as ex
-from .config import configs_dir, load_yaml
+from .config import configs_dir
 from .identification import (
     IDENTIFIABLE,
     Estimate,
@@ -405,8 +405,3 @@ def recovery(plants: list[str], draws: int) -> tuple[str, dict[str, dict[str, li
                 f"| {plant} | {k} | {len(v)}/{draws} | {np.max(np.abs(v)):.2%} | {np.mean(v):+.2%} |"
             )
     return "\n".join(lines) + "\n", errors
-
-
-def identified_yaml(path: Path) -> dict[str, Any]:
-    """A written identified.yaml, loaded."""
-    return load_yaml(path)

@@ -12,13 +12,12 @@ refused. Then prints one table per scenario and writes leaderboard.md, leaderboa
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
 
 from frictiongym.agents import leaderboard
-from frictiongym.agents.engine import Ray, RunMismatch
+from frictiongym.agents.engine import RunMismatch, add_backend_arguments, backend_of
 from frictiongym.agents.registry import committed_models
 from frictiongym.envs.scenario import scenario_names
 from frictiongym.envs.suites import Episode, suite_names
@@ -54,20 +53,14 @@ def main(argv: list[str] | None = None) -> int:
         type=Path,
         help="saved-model folders (manifest.yaml); default: the committed ones (agents/models/headline)",
     )
-    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
-    ap.add_argument("--backend", choices=["local", "ray"], default="local", help="process pool or Ray tasks")
-    ap.add_argument("--address", help="Ray cluster to join (default: a local Ray on --workers CPUs)")
+    add_backend_arguments(ap)
     ap.add_argument("--out", type=Path, default=Path("out/leaderboard"))
     args = ap.parse_args(argv)
-    if args.address and args.backend != "ray":
-        ap.error("--address goes with --backend ray")
-    ray = Ray(args.address) if args.backend == "ray" else None
+    ray = backend_of(args, ap)
     if args.scenarios and not args.seeds:
         ap.error("--scenarios needs --seeds")
     if args.seeds and not args.scenarios:
         ap.error("--seeds goes with --scenarios (a suite has its own seeds)")
-    if args.workers < 1:
-        ap.error("--workers must be >= 1")
     suite = args.suite or ("inline" if args.scenarios else "default")
     episodes = (
         [Episode(sc, seed, args.randomize) for sc in args.scenarios for seed in args.seeds]

@@ -17,12 +17,11 @@ wide ranges; agents/models/headline: with the nominal ranges); those that apply 
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
 from frictiongym.agents import sim2real
-from frictiongym.agents.engine import Ray, RunMismatch
+from frictiongym.agents.engine import RunMismatch, add_backend_arguments, backend_of
 from frictiongym.agents.registry import committed_models
 from frictiongym.envs.scenario import scenario_names
 
@@ -40,14 +39,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--model-error", type=int, default=10, help="true plants of the identification closing-the-loop study"
     )
-    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
-    ap.add_argument("--backend", choices=["local", "ray"], default="local", help="process pool or Ray tasks")
-    ap.add_argument("--address", help="Ray cluster to join (default: a local Ray on --workers CPUs)")
+    add_backend_arguments(ap)
     ap.add_argument("--out", type=Path, default=Path("out/sim2real"))
     args = ap.parse_args(argv)
-    if args.address and args.backend != "ray":
-        ap.error("--address goes with --backend ray")
-    ray = Ray(args.address) if args.backend == "ray" else None
+    ray = backend_of(args, ap)
     if min(args.seeds, args.points - 1, args.joint + 1, args.workers) < 1:
         ap.error("--seeds >= 1, --points >= 2, --joint >= 0, --workers >= 1")
     default = [*committed_models("sim2real"), *committed_models("headline")]  # those that apply are run
