@@ -382,13 +382,15 @@ def _plot_document(t: dict[str, np.ndarray], values: dict[str, float], path: Pat
 def recovery(plants: list[str], draws: int) -> tuple[str, dict[str, dict[str, list[float]]]]:
     """The acceptance study: LuGre identification on `draws` randomised plants per plant (noise and
     quantisation on): the relative error of every identified parameter. Returns a markdown table."""
+    from tqdm import tqdm
+
     from .identification import identify_simulated
 
     errors: dict[str, dict[str, list[float]]] = {}
     for plant in plants:
         p = ex.protocol(plant)
         errors[plant] = {}
-        for seed in range(draws):
+        for seed in tqdm(range(draws), desc=f"recovery {plant}", unit="plant"):
             rig = ex.Rig.of(plant, seed, True)
             fid = identify_simulated(ex.run_all(rig, p, ("holds", "breakaway", "presliding")), p)
             tv = truth_values(rig.spec)
