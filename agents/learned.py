@@ -86,7 +86,21 @@ def sha256(path: str | Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-class SB3Policy(Controller):
+class LearnedNeeds:
+    """What a learned controller brings into its env: its base's hardware and its observation blocks. Shared
+    by SB3Policy and the training env (agents/training.py), so both build the same env."""
+
+    inputs: PolicyInputs
+    base: Controller | None
+
+    def plant_overrides(self, scenario: Scenario) -> dict:
+        return self.base.plant_overrides(scenario) if self.base is not None else {}
+
+    def observation_overrides(self) -> dict:
+        return self.inputs.observation_overrides()
+
+
+class SB3Policy(LearnedNeeds, Controller):
     """A trained SB3 model (any algorithm with predict), deterministic.
 
     With `base` it is a residual: u = clip(u_base + α·π(obs, u_base), -1, 1), and it brings the base's
@@ -152,12 +166,6 @@ class SB3Policy(Controller):
         if self.plants and scenario.spec.name not in self.plants:
             return f"trained for plants {list(self.plants)}, the scenario's plant is {scenario.spec.name}"
         return None
-
-    def plant_overrides(self, scenario: Scenario) -> dict:
-        return self.base.plant_overrides(scenario) if self.base is not None else {}
-
-    def observation_overrides(self) -> dict:
-        return self.inputs.observation_overrides()
 
     def reset(self, ctx: EpisodeContext) -> None:
         self.ctx = ctx

@@ -48,7 +48,14 @@ from frictiongym.envs.suites import load_suite
 from .base import Controller, EpisodeContext
 from .engine import provenance
 from .evaluate import EnvCache, controller_overrides, run_episode
-from .learned import PolicyInputs, SB3Policy, algorithm_class, policy_observation, residual_action
+from .learned import (
+    LearnedNeeds,
+    PolicyInputs,
+    SB3Policy,
+    algorithm_class,
+    policy_observation,
+    residual_action,
+)
 from .settings import knowledge_defaults
 
 TRAINING_SEEDS = 10_000_000  # training episode seeds start here: run seed s, env i, episode k ->
@@ -309,20 +316,14 @@ def make_env(cfg: RunConfig, seed: int, rank: int, monitor_dir: str | None = Non
     return Monitor(wrapped, os.path.join(monitor_dir, str(rank)) if monitor_dir else None)
 
 
-class SB3PolicyShape(Controller):
-    """What a learned controller brings into its env (the base's hardware, its observation blocks), without
-    a model: used to build the training env exactly as the evaluation builds it."""
+class SB3PolicyShape(LearnedNeeds, Controller):
+    """A learned controller's needs (LearnedNeeds) without a model: builds the training env exactly as the
+    evaluation builds the trained controller's."""
 
     name = "shape"
 
     def __init__(self, inputs: PolicyInputs, base: Controller | None):
         self.inputs, self.base = inputs, base
-
-    def plant_overrides(self, scenario):
-        return self.base.plant_overrides(scenario) if self.base is not None else {}
-
-    def observation_overrides(self) -> dict:
-        return self.inputs.observation_overrides()
 
     def reset(self, ctx: EpisodeContext) -> None:
         raise NotImplementedError("a shape does not act")
