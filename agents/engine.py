@@ -18,12 +18,10 @@ import io
 import json
 import math
 import os
-import subprocess
 import sys
 from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass
-from importlib.metadata import PackageNotFoundError, version
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
@@ -32,6 +30,7 @@ from tqdm import tqdm
 
 from frictiongym.envs import env_id
 from frictiongym.envs.metrics import METRIC_NAMES
+from frictiongym.envs.records import atomic_text, git_commit, package_version
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
 
@@ -98,21 +97,7 @@ def plan(
 
 def provenance() -> dict[str, str]:
     """Package version and git commit (if the code runs from a git checkout), for every row."""
-    try:
-        pkg = version("frictiongym")
-    except PackageNotFoundError:
-        pkg = "unknown"
-    try:
-        commit = subprocess.run(
-            ["git", "rev-parse", "HEAD"],
-            cwd=Path(__file__).parent,
-            capture_output=True,
-            text=True,
-            timeout=10,
-        ).stdout.strip()
-    except (OSError, subprocess.SubprocessError):
-        commit = ""
-    return {"package_version": pkg, "git_commit": commit}
+    return {"package_version": package_version(), "git_commit": git_commit()}
 
 
 # ------------------------------------------------------------------------------------------- workers
@@ -261,15 +246,6 @@ class RunMismatch(RuntimeError):
     """The output folder holds a run with other options."""
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "w") as f:
-        f.write(text)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-
-
 def _csv_text(rows: Iterable[dict[str, Any]], header: bool = False) -> str:
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=FIELDS, lineterminator="\n", extrasaction="ignore")
@@ -295,9 +271,9 @@ class EpisodesFile:
         if not run.exists():
             if self.path.exists():
                 raise RunMismatch(f"{self.path} exists without {run}; use another --out or remove it")
-            _atomic_write(run, text + "\n")
+            atomic_text(run, text + "\n")
         self.rows = self._read()
-        _atomic_write(self.path, _csv_text(self.rows, header=True))  # without a torn tail
+        atomic_text(self.path, _csv_text(self.rows, header=True))  # without a torn tail
 
     def _read(self) -> list[dict[str, str]]:
         """Complete rows already on disk (a last line without its newline is a torn write: dropped)."""
@@ -326,7 +302,7 @@ class EpisodesFile:
     def finish(self, order: list[Job], main_metric: dict[str, str]) -> list[dict[str, str]]:
         """Fill in the normalised scores; rewrite the file in the jobs' order (atomically); the rows."""
         self.rows = canonical(self.rows, order, main_metric)
-        _atomic_write(self.path, _csv_text(self.rows, header=True))
+        atomic_text(self.path, _csv_text(self.rows, header=True))
         return self.rows
 
 

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from frictiongym.envs.metrics import METRIC_NAMES
+from frictiongym.envs.records import atomic_text, atomic_write
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.suites import Episode, load_suite
 
@@ -212,13 +213,6 @@ def markdown(
     return "\n".join(lines) + "\n"
 
 
-def _atomic_text(path: Path, text: str) -> None:
-    """Write a whole text file atomically (temporary file, then rename): never a half-written file."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
-
-
 def write_table_csv(table: dict[str, list[dict]], scenarios: dict[str, Scenario], path: Path) -> None:
     """The tables: one row per (scenario, controller): main metric and score (mean, lo, hi), the paired
     comparison against the baseline, and every metric (mean, lo, hi)."""
@@ -242,18 +236,16 @@ def write_table_csv(table: dict[str, list[dict]], scenarios: dict[str, Scenario]
                 + [repr(v.get(k, math.nan)) for k in ("diff", "diff_lo", "diff_hi", "p_improve")]
                 + [repr(x) for m in METRIC_NAMES for x in r["metrics"][m]]
             )
-    _atomic_text(path, buf.getvalue())
+    atomic_text(path, buf.getvalue())
 
 
 def _save_png(fig, path: Path) -> str:
     """Save a figure atomically (temporary file, then rename) and close it; returns the file name."""
     import matplotlib.pyplot as plt
 
-    tmp = path.with_name(f".{path.name}.tmp")
     fig.tight_layout()
-    fig.savefig(tmp, dpi=110, format="png")
+    atomic_write(path, lambda p: fig.savefig(p, dpi=110, format="png"))
     plt.close(fig)
-    tmp.replace(path)
     return path.name
 
 
@@ -396,5 +388,5 @@ def run(
         write_table_csv(table, scenarios, out / "leaderboard.csv")
         figs = plots(results, table, agg, out, scenarios, {e.scenario: e.randomize for e in episodes}, models)
         md = markdown(table, agg, suite, scenarios)
-        _atomic_text(out / "leaderboard.md", md + "\n" + "".join(f"![{f}]({f})\n" for f in figs))
+        atomic_text(out / "leaderboard.md", md + "\n" + "".join(f"![{f}]({f})\n" for f in figs))
     return results, table

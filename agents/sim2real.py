@@ -23,6 +23,7 @@ import numpy as np
 
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.plants.params import EpisodeParams
+from frictiongym.envs.records import atomic_text, atomic_write
 from frictiongym.envs.sampler import stream
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
@@ -238,10 +239,8 @@ def plot(table: list[dict[str, Any]], scenario: str, path: Path) -> None:
     ax[0, -1].legend(fontsize=6)
     fig.suptitle(f"sim-to-real: {scenario}")
     fig.tight_layout()
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=90)
+    atomic_write(path, lambda p: fig.savefig(p, dpi=90, format="png"))
     plt.close(fig)
-    tmp.replace(path)
 
 
 # ------------------------------------------------------------------------------------------- model error
@@ -340,10 +339,8 @@ def plot_model_error(table: list[dict[str, Any]], metric: str, path: Path) -> No
     ax.set(ylabel=metric, title="performance lost to model error (evaluated on the true plants)")
     ax.legend(fontsize=7)
     fig.tight_layout()
-    tmp = path.with_name(f".{path.name}.tmp.png")
-    fig.savefig(tmp, dpi=90)
+    atomic_write(path, lambda p: fig.savefig(p, dpi=90, format="png"))
     plt.close(fig)
-    tmp.replace(path)
 
 
 def model_error_markdown(table: list[dict[str, Any]], metric: str, draws: int) -> str:
@@ -406,7 +403,7 @@ def run(
     w = csv.DictWriter(buf, fieldnames=list(table[0]), lineterminator="\n")
     w.writeheader()
     w.writerows(table)
-    engine._atomic_write(out / "sim2real.csv", buf.getvalue())
+    atomic_text(out / "sim2real.csv", buf.getvalue())
     plot(table, scenario, out / "sim2real.png")
     ran = [n for n in names if n != "Zero" and any(r["controller"] == n for r in table)]
     sc = load_scenario(scenario)
@@ -443,9 +440,9 @@ def run(
         w = csv.DictWriter(buf, fieldnames=fields, restval="", lineterminator="\n")
         w.writeheader()
         w.writerows(me)
-        engine._atomic_write(out / "model_error.csv", buf.getvalue())
+        atomic_text(out / "model_error.csv", buf.getvalue())
         plot_model_error(me, sc.main_metric, out / "model_error.png")
         md.append(model_error_markdown(me, sc.main_metric, model_error_draws))
     text = "\n".join(md) + "\n"
-    engine._atomic_write(out / "sim2real.md", text)
+    atomic_text(out / "sim2real.md", text)
     return table, text

@@ -19,12 +19,11 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import shlex
-import sys
 from pathlib import Path
 from typing import Any
 
 from frictiongym.envs.config import ConfigError, Node, load_yaml, preset_path
+from frictiongym.envs.records import command_line
 
 from .training import RunConfig, TrainingRun, _deep_merge, _raw_config, _run_config, load_config
 
@@ -117,7 +116,7 @@ def run_sweep(sweep: Sweep, out: Path, address: str | None = None, workers: int 
     from .engine import _ray_init
 
     _ray_init(workers, address)
-    command = shlex.join([Path(sys.executable).name, *sys.argv])
+    command = command_line()
     out = Path(out).resolve()
 
     def trainable(params: dict[str, Any]) -> None:

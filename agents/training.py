@@ -26,7 +26,6 @@ import json
 import math
 import os
 import pickle
-import shlex
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -41,6 +40,7 @@ from gymnasium import spaces
 
 from frictiongym.envs.config import ConfigError, Node, load_yaml
 from frictiongym.envs.plants.spec import RANDOMIZATION_KEYS
+from frictiongym.envs.records import atomic_write, command_line
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.suites import load_suite
@@ -443,20 +443,13 @@ def frozen_normalizer(venv: Any) -> Any:
     return norm
 
 
-def _atomic(path: Path, write: Callable[[Path], None]) -> None:
-    """write(tmp) then rename over path: a reader never sees a partial file."""
-    tmp = path.with_name(f".{path.name}.tmp{path.suffix}")
-    write(tmp)
-    os.replace(tmp, path)
-
-
 def _save_model(model: Any, venv: Any, folder: Path) -> None:
     folder.mkdir(parents=True, exist_ok=True)
-    _atomic(folder / MODEL, lambda p: model.save(p))
+    atomic_write(folder / MODEL, lambda p: model.save(p))
     from stable_baselines3.common.vec_env import VecNormalize
 
     if isinstance(venv, VecNormalize):  # its pickle leaves out the wrapped env
-        _atomic(folder / NORMALIZER, lambda p: p.write_bytes(pickle.dumps(venv)))
+        atomic_write(folder / NORMALIZER, lambda p: p.write_bytes(pickle.dumps(venv)))
 
 
 def _callback_class():
@@ -541,7 +534,7 @@ class TrainingRun:
         if row["admissible"] and (self.best is None or row["main"] < self.best["main"]):
             self.best = row
             _save_model(model, model.get_env(), self.out)
-        _atomic(self.out / "validation.csv", lambda p: p.write_text(_csv(self.history)))
+        atomic_write(self.out / "validation.csv", lambda p: p.write_text(_csv(self.history)))
         if self.reporter is not None:
             self.reporter(row)
 
@@ -551,7 +544,7 @@ class TrainingRun:
         ck = self.out / "checkpoint"
         _save_model(model, model.get_env(), ck)
         if hasattr(model, "replay_buffer") and model.replay_buffer is not None:
-            _atomic(ck / "replay_buffer.pkl", lambda p: model.save_replay_buffer(p))
+            atomic_write(ck / "replay_buffer.pkl", lambda p: model.save_replay_buffer(p))
         state = {
             "num_timesteps": model.num_timesteps,
             "wall_s": self.elapsed(),
@@ -560,7 +553,7 @@ class TrainingRun:
             "next_eval": self.next_eval,
             "episodes": model.get_env().get_attr("episodes"),
         }
-        _atomic(ck / "state.json", lambda p: p.write_text(json.dumps(state)))
+        atomic_write(ck / "state.json", lambda p: p.write_text(json.dumps(state)))
 
     # ----------------------------------------------------------------------------- the run
     def train(self, resume: bool = False) -> dict[str, Any]:
@@ -628,7 +621,7 @@ class TrainingRun:
                 f"{self.effort_ref:.4g} (the baseline's): nothing to select"
             )
         manifest = self.manifest(model.num_timesteps)
-        _atomic(out / MANIFEST, lambda p: p.write_text(yaml.safe_dump(manifest, sort_keys=False)))
+        atomic_write(out / MANIFEST, lambda p: p.write_text(yaml.safe_dump(manifest, sort_keys=False)))
         plot_curve(self.history, self.baseline, self.main, out / "training_curve.png", self.name)
         return manifest
 
@@ -702,7 +695,7 @@ def plot_curve(
     ax[1].set(ylabel="effort_rms", xlabel="training steps")
     ax[0].set_title(title)
     fig.tight_layout()
-    _atomic(path, lambda p: fig.savefig(p, dpi=90, format="png"))
+    atomic_write(path, lambda p: fig.savefig(p, dpi=90, format="png"))
     plt.close(fig)
 
 
@@ -741,7 +734,7 @@ def train_many(
     cfgs: Sequence[RunConfig], seeds: Sequence[int], out: Path, resume: bool, workers: int
 ) -> list[dict[str, Any]]:
     """Every (config, seed) run; with workers > 1 on a spawn pool, one torch thread each."""
-    command = shlex.join([Path(sys.executable).name, *sys.argv])
+    command = command_line()
     jobs = [(c, s, str(run_dir(out, c, s)), command, resume, workers == 1) for c in cfgs for s in seeds]
     if workers == 1:
         return [train_one(j) for j in jobs]

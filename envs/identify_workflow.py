@@ -9,8 +9,6 @@ import datetime
 import hashlib
 import json
 import math
-import shlex
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -35,6 +33,7 @@ from .identification import (
     two_point_step_id,
     write_log,
 )
+from .records import atomic_text, command_line, package_version
 from .units import rad_per_count
 
 # seed 000 §2.3 as printed: (slope V·s/count, intercept V) per direction, as strings (their digits matter)
@@ -43,24 +42,12 @@ TABLE = "iurian2005_m220_friction_table.csv"
 RECOMMENDED_MIN_SPEED_COUNTS_S = 7000.0  # above the low-speed hump of rows 1-4 (stick-slip, Stribeck)
 
 
-def provenance(data: str, extra: str = "") -> str:
+def provenance(data: str) -> str:
     """One line: the data (file and SHA-256, or the simulation), the command, package and date."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        pkg = version("frictiongym")
-    except PackageNotFoundError:
-        pkg = "unknown"
     p = Path(data)
     what = f"{data} (sha256 {hashlib.sha256(p.read_bytes()).hexdigest()[:16]})" if p.is_file() else data
-    cmd = shlex.join([Path(sys.executable).name, *sys.argv])
-    return f"data: {what}{extra}; command: {cmd}; frictiongym {pkg}; {datetime.date.today().isoformat()}"
-
-
-def _atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(path)
+    today = datetime.date.today().isoformat()
+    return f"data: {what}; command: {command_line()}; frictiongym {package_version()}; {today}"
 
 
 def write_identified(out: Path, values: dict[str, float], source: str) -> Path:
@@ -77,7 +64,7 @@ def write_identified(out: Path, values: dict[str, float], source: str) -> Path:
         + yaml.safe_dump(body, sort_keys=False)
     )
     path = out / "identified.yaml"
-    _atomic(path, text)
+    atomic_text(path, text)
     return path
 
 
@@ -352,8 +339,8 @@ def run(
         sections += ["", f"Override for the envs: `{path.name}` ({', '.join(values)})."]
         results["identified"] = values
     text = "\n".join(sections) + "\n"
-    _atomic(out / "report.md", text)
-    _atomic(out / "result.json", json.dumps(results, indent=1, default=float))
+    atomic_text(out / "report.md", text)
+    atomic_text(out / "result.json", json.dumps(results, indent=1, default=float))
     return text
 
 

@@ -1,0 +1,55 @@
+"""Writing results: files replaced atomically (a reader, or an interrupted run, never sees a half-written
+file) and the provenance every result carries (package version, git commit, the exact command)."""
+
+from __future__ import annotations
+
+import os
+import shlex
+import subprocess
+import sys
+from collections.abc import Callable
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+
+def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
+    """write(tmp) into a temporary file beside path (same suffix: some writers append their own), flush it
+    to disk, then rename it over path."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp{path.suffix}")
+    write(tmp)
+    with open(tmp, "rb+") as f:
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def atomic_text(path: Path, text: str) -> None:
+    """A whole text file, atomically."""
+    atomic_write(path, lambda p: p.write_text(text))
+
+
+def package_version() -> str:
+    """The installed frictiongym version ("unknown" when running from an uninstalled tree)."""
+    try:
+        return version("frictiongym")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def git_commit() -> str:
+    """The commit of the code's git checkout ("" outside one)."""
+    try:
+        return subprocess.run(
+            ["git", "rev-parse", "HEAD"],
+            cwd=Path(__file__).parent,
+            capture_output=True,
+            text=True,
+            timeout=10,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+def command_line() -> str:
+    """The exact command this process runs, shell-quoted."""
+    return shlex.join([Path(sys.executable).name, *sys.argv])
