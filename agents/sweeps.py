@@ -16,7 +16,6 @@ The same sweep runs on a laptop (a local Ray) and on a cluster (--address).
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import math
 from pathlib import Path
@@ -25,7 +24,7 @@ from typing import Any
 from frictiongym.envs.config import ConfigError, Node, load_yaml, preset_path
 from frictiongym.envs.records import command_line
 
-from .training import RunConfig, TrainingRun, _deep_merge, _raw_config, _run_config, load_config
+from .training import RunConfig, TrainingRun, _raw_config, _run_config, load_config, scenario_settings
 
 SEARCHES = ("grid", "optuna")
 DISTRIBUTIONS = {"grid": "grid", "uniform": "uniform", "loguniform": "loguniform", "choice": "choice"}
@@ -87,10 +86,7 @@ def load_sweep(path: str | Path) -> Sweep:
 def trial_config(sweep: Sweep, values: dict[str, Any]) -> RunConfig:
     """The run config of one trial: the scenario's settings with the dotted keys replaced."""
     raw, file = _raw_config(sweep.config)
-    from frictiongym.envs.config import configs_dir
-
-    entry = _deep_merge(load_yaml(configs_dir() / "agents" / "_defaults.yaml"), raw.get("defaults") or {})
-    entry = _deep_merge(entry, copy.deepcopy(raw["scenarios"][sweep.scenario]) or {})
+    entry = scenario_settings(raw, sweep.scenario)
     for key, value in values.items():
         node = entry
         parts = key.split(".")

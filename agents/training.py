@@ -18,6 +18,7 @@ compensator that chatters is not a result); one torch thread per process.
 from __future__ import annotations
 
 import contextlib
+import copy
 import csv
 import dataclasses
 import inspect
@@ -128,18 +129,24 @@ def _raw_config(path: str | Path, seen: tuple[str, ...] = ()) -> tuple[dict[str,
     return _deep_merge(base, raw), str(file)
 
 
-def load_config(path: str | Path, scenario: str | None = None) -> list[RunConfig]:
-    """The runs a training config asks for: every scenario in it, or just `scenario`. Each scenario's
-    settings are configs/agents/_defaults.yaml, then the file's `defaults`, then its scenario entry."""
+def scenario_settings(raw: dict[str, Any], scenario: str) -> dict[str, Any]:
+    """A scenario's settings in a (merged) config file: configs/agents/_defaults.yaml, then the file's
+    `defaults`, then its scenario entry."""
     from frictiongym.envs.config import configs_dir
 
+    defaults = _deep_merge(load_yaml(configs_dir() / "agents" / "_defaults.yaml"), raw.get("defaults") or {})
+    return copy.deepcopy(_deep_merge(defaults, raw["scenarios"][scenario]))  # the caller may edit it
+
+
+def load_config(path: str | Path, scenario: str | None = None) -> list[RunConfig]:
+    """The runs a training config asks for: every scenario in it, or just `scenario` (scenario_settings)."""
     raw, file = _raw_config(path)
     top = Node(raw, file)
     algo = top.choice("algorithm", ALGORITHMS)
     name = top["name"]
     if not isinstance(name, str) or not name.replace("-", "").replace("_", "").isalnum():
         raise top.error("name", f"expected a name of letters, digits, '-' and '_', got {name!r}")
-    defaults = _deep_merge(load_yaml(configs_dir() / "agents" / "_defaults.yaml"), top.get("defaults") or {})
+    top.get("defaults")
     scenarios = top.section("scenarios")
     keys = [k for k in list(scenarios.keys()) if scenarios[k] is not None]  # null: an entry left out
     if not keys:
@@ -148,8 +155,7 @@ def load_config(path: str | Path, scenario: str | None = None) -> list[RunConfig
         raise top.error("scenarios", f"no entry for scenario {scenario!r}; the file has {keys}")
     out = []
     for sc in keys:  # every entry is checked, the asked-for ones returned
-        merged = _deep_merge(defaults, scenarios[sc])
-        cfg = _run_config(Node(merged, file, f"scenarios.{sc}."), name, algo, sc, file)
+        cfg = _run_config(Node(scenario_settings(raw, sc), file, f"scenarios.{sc}."), name, algo, sc, file)
         if scenario in (None, sc):
             out.append(cfg)
     scenarios.done()
