@@ -259,9 +259,8 @@ def model_error(
     from tqdm import tqdm
 
     from frictiongym.envs import experiments as ex
-    from frictiongym.envs.identification import identify_simulated
-    from frictiongym.envs.plants import plant_spec
-    from frictiongym.envs.plants.params import EpisodeParams, spec_with
+    from frictiongym.envs.identification import apply_identified, identify_simulated
+    from frictiongym.envs.plants.params import spec_with
 
     from .evaluate import EnvCache, run_episode
 
@@ -275,9 +274,10 @@ def model_error(
         rig = ex.Rig.of(sc.spec, seed, True)
         fid = identify_simulated(ex.run_all(rig, p, ("holds", "breakaway", "presliding")), p)
         values = {k: v for k, v in fid.values().items() if k not in fid.unidentified}
-        # a design model, not a randomised plant: no randomisation ranges (their corners need not pass)
-        identified = plant_spec(sc.spec.name, {"friction_identified": values, "randomization": None})
-        identified = replace_timing(identified, sc.spec)
+        # the scenario's plant with the identified friction (the friction_identified mechanism), checked as
+        # a plant's parameters are; a design model, so the randomisation ranges are not re-checked
+        identified = apply_identified(sc.spec, values)
+        EpisodeParams.nominal(identified).validate(identified)
         true = spec_with(sc.spec, EpisodeParams.draw(sc.spec, seed))
         for name in controllers:
             c = registry.make(name)
@@ -289,13 +289,6 @@ def model_error(
                     {"controller": name, "design": design, "seed": seed, "main": r.metrics[sc.main_metric]}
                 )
     return rows
-
-
-def replace_timing(spec: Any, like: Any) -> Any:
-    """spec with the control period and sampling of `like` (the scenario's), as the scenario's own spec."""
-    from dataclasses import replace
-
-    return replace(spec, control_period=like.control_period, timestep=like.timestep, delay=like.delay)
 
 
 def model_error_table(rows: list[dict[str, Any]]) -> list[dict[str, Any]]:
