@@ -418,7 +418,7 @@ def evaluate_controller(controller: Controller, episodes: list, envs: EnvCache) 
     return {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
 
 
-def classical_on(scenario: str, episodes: list, envs: EnvCache) -> dict[str, dict[str, float]]:
+def classical_on(episodes: list, envs: EnvCache) -> dict[str, dict[str, float]]:
     """Metric means of every applicable built-in controller (Zero included) on the episodes."""
     from .registry import BUILTIN
 
@@ -575,7 +575,7 @@ class TrainingRun:
         if not resume and (ck / "state.json").exists():
             raise FileExistsError(f"{out} holds an unfinished run: continue it with --resume")
         out.mkdir(parents=True, exist_ok=True)
-        classical = classical_on(cfg.scenario, self.episodes, self.envs)
+        classical = classical_on(self.episodes, self.envs)
         self.baseline, self.zero = best_classical(cfg.scenario, classical), classical["Zero"]
         # admissible effort: relative to the best baseline, and to the base controller in residual mode
         self.effort_ref = min(
@@ -616,9 +616,7 @@ class TrainingRun:
                 progress_bar=self.progress,
                 tb_log_name="run",
             )
-            if model.num_timesteps >= self.next_eval - cfg.eval_every_steps and (
-                not self.history or self.history[-1]["step"] != model.num_timesteps
-            ):
+            if not self.history or self.history[-1]["step"] != model.num_timesteps:  # the final model too
                 self.validate(model, model.logger)
             self.checkpoint(model)
         if self.best is None:

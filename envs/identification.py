@@ -154,6 +154,13 @@ class Estimate:
     low: float
     high: float
 
+    def mean_with(self, other: Estimate) -> Estimate:
+        """The mean of two directions' estimates (value and interval ends), for a parameter the simulator
+        has once (one viscous slope, one Stribeck velocity)."""
+        return Estimate(
+            0.5 * (self.value + other.value), 0.5 * (self.low + other.low), 0.5 * (self.high + other.high)
+        )
+
     def __format__(self, spec: str) -> str:
         return f"{self.value:{spec or '.6g'}} [{self.low:{spec or '.4g'}}, {self.high:{spec or '.4g'}}]"
 
@@ -568,9 +575,7 @@ def identify_coulomb_viscous(holds_log: Log, min_speed: float = 0.0) -> Friction
     c = fits["neg"].coulomb
     est["coulomb_neg"] = Estimate(-c.value, -c.high, -c.low)
     # one viscous slope for the plant (the simulator's LuGre has one σ2): the mean of the two
-    lo = 0.5 * (fits["pos"].viscous.low + fits["neg"].viscous.low)
-    hi = 0.5 * (fits["pos"].viscous.high + fits["neg"].viscous.high)
-    est["viscous_per_rad_s"] = Estimate(0.5 * (fits["pos"].viscous.value + fits["neg"].viscous.value), lo, hi)
+    est["viscous_per_rad_s"] = fits["pos"].viscous.mean_with(fits["neg"].viscous)
     est["viscous_pos_per_rad_s"], est["viscous_neg_per_rad_s"] = fits["pos"].viscous, fits["neg"].viscous
     return FrictionId(est, [*notes, "Stribeck part not fitted (Coulomb + viscous only)"], pts)
 
@@ -596,7 +601,7 @@ def identify_lugre(
         notes.append("static levels from the breakaway ramps (intervals: not estimated, one ramp each)")
     for key, name in (("vs", "stribeck_velocity_rad_s"), ("viscous", "viscous_per_rad_s")):
         a, b = fits["pos"][key], fits["neg"][key]
-        est[name] = Estimate(0.5 * (a.value + b.value), 0.5 * (a.low + b.low), 0.5 * (a.high + b.high))
+        est[name] = a.mean_with(b)
     slowest = float(min(np.abs(v)))
     drop = min(
         (est[f"static_{d}"].value - est[f"coulomb_{d}"].value) / est[f"coulomb_{d}"].value
