@@ -23,7 +23,7 @@ import numpy as np
 
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.plants.params import EpisodeParams
-from frictiongym.envs.records import atomic_text, atomic_write
+from frictiongym.envs.records import atomic_text, atomic_write, csv_text
 from frictiongym.envs.sampler import stream
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
@@ -374,8 +374,6 @@ def run(
 ) -> tuple[list[dict[str, Any]], str]:
     """Run the study into out/ (episodes.csv, sim2real.csv, sim2real.png, sim2real.md, and the closing-the-
     loop study model_error.csv / .png); returns the table and the markdown."""
-    import csv
-    import io
 
     available = registry.available(models)
     names = controllers or list(available)
@@ -392,11 +390,7 @@ def run(
     }
     rows, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models, ray)
     table = summarize(rows, scenario)
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(table[0]), lineterminator="\n")
-    w.writeheader()
-    w.writerows(table)
-    atomic_text(out / "sim2real.csv", buf.getvalue())
+    atomic_text(out / "sim2real.csv", csv_text(table))
     plot(table, scenario, out / "sim2real.png")
     ran = [n for n in names if n != "Zero" and any(r["controller"] == n for r in table)]
     sc = load_scenario(scenario)
@@ -428,12 +422,8 @@ def run(
     if model_error_draws:
         classical = [n for n in names if n in registry.BUILTIN and n != "Zero"]
         me = model_error_table(model_error(scenario, classical, model_error_draws, progress))
-        buf = io.StringIO()
         fields = ["controller", "design", "mean", "ci_low", "ci_high", "loss", "loss_low", "loss_high"]
-        w = csv.DictWriter(buf, fieldnames=fields, restval="", lineterminator="\n")
-        w.writeheader()
-        w.writerows(me)
-        atomic_text(out / "model_error.csv", buf.getvalue())
+        atomic_text(out / "model_error.csv", csv_text(me, fields))
         plot_model_error(me, sc.main_metric, out / "model_error.png")
         md.append(model_error_markdown(me, sc.main_metric, model_error_draws))
     text = "\n".join(md) + "\n"

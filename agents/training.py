@@ -19,10 +19,8 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import csv
 import dataclasses
 import inspect
-import io
 import json
 import math
 import os
@@ -41,7 +39,7 @@ from gymnasium import spaces
 
 from frictiongym.envs.config import ConfigError, Node, load_yaml
 from frictiongym.envs.plants.spec import RANDOMIZATION_KEYS
-from frictiongym.envs.records import atomic_write, command_line
+from frictiongym.envs.records import atomic_write, command_line, csv_text
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.suites import load_suite
@@ -540,7 +538,7 @@ class TrainingRun:
         if row["admissible"] and (self.best is None or row["main"] < self.best["main"]):
             self.best = row
             _save_model(model, model.get_env(), self.out)
-        atomic_write(self.out / "validation.csv", lambda p: p.write_text(_csv(self.history)))
+        atomic_write(self.out / "validation.csv", lambda p: p.write_text(csv_text(self.history)))
         if self.reporter is not None:
             self.reporter(row)
 
@@ -669,14 +667,6 @@ class TrainingRun:
             },
             "config": {**cfg.as_dict(), "inputs": dataclasses.asdict(cfg.inputs)},
         }
-
-
-def _csv(rows: list[dict[str, Any]]) -> str:
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
-    w.writeheader()
-    w.writerows(rows)
-    return buf.getvalue()
 
 
 def plot_curve(

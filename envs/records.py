@@ -3,6 +3,8 @@ file) and the provenance every result carries (package version, git commit, the 
 
 from __future__ import annotations
 
+import csv
+import io
 import os
 import shlex
 import subprocess
@@ -10,6 +12,7 @@ import sys
 from collections.abc import Callable
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
+from typing import Any
 
 
 def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
@@ -26,6 +29,15 @@ def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
 def atomic_text(path: Path, text: str) -> None:
     """A whole text file, atomically."""
     atomic_write(path, lambda p: p.write_text(text))
+
+
+def csv_text(rows: list[dict[str, Any]], fields: list[str] | None = None) -> str:
+    """Rows as CSV text with a header: `fields` (default: the first row's keys); missing values empty."""
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=fields or list(rows[0]), restval="", lineterminator="\n")
+    w.writeheader()
+    w.writerows(rows)
+    return buf.getvalue()
 
 
 def package_version() -> str:

@@ -67,9 +67,8 @@ def main(argv: list[str] | None = None) -> int:
 
 def sweep(args: argparse.Namespace) -> int:
     """Run a sweep on Ray Tune and write DIR/<sweep>.csv (one row per trial)."""
-    import csv
-
     from frictiongym.agents.sweeps import METRIC, load_sweep, run_sweep
+    from frictiongym.envs.records import atomic_text, csv_text
 
     try:
         s = load_sweep(args.sweep)
@@ -79,11 +78,9 @@ def sweep(args: argparse.Namespace) -> int:
     rows = run_sweep(s, args.out, args.address, args.workers)
     args.out.mkdir(parents=True, exist_ok=True)
     fields = sorted({k for r in rows for k in r})
-    with open(args.out / f"{s.name}.csv", "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=fields, lineterminator="\n")
-        w.writeheader()
-        w.writerows(sorted(rows, key=lambda r: r[METRIC]))
-    for r in sorted(rows, key=lambda r: r[METRIC]):
+    rows = sorted(rows, key=lambda r: r[METRIC])
+    atomic_text(args.out / f"{s.name}.csv", csv_text(rows, fields))
+    for r in rows:
         print(", ".join(f"{k}={r[k]}" for k in fields if k != "folder"), r["folder"])
     return 0 if not any(r["error"] for r in rows) else 1
 
