@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict
-from operator import attrgetter
+from operator import itemgetter
 
 import mujoco
 import numpy as np
@@ -35,28 +35,37 @@ from .step import (
 
 # MuJoCo warnings after which it resets the simulation or ignores the command: each ends the episode
 # as diverged (MuJoCo would otherwise carry on silently from rest).
-_NUMBER = attrgetter("number")  # a warning counter's count
 DIVERGENCE_WARNINGS = np.array(
     [
         int(getattr(mujoco.mjtWarning, w))
         for w in ("mjWARN_BADQACC", "mjWARN_BADQPOS", "mjWARN_BADQVEL", "mjWARN_BADCTRL")
     ]
 )
+_DIVERGENCE_COUNTS = itemgetter(*DIVERGENCE_WARNINGS.tolist())  # their counts from a list of all counts
 
 
 class SingleBackend:
-    """One MjData."""
+    """One MjData. Its arrays are read and written through views made once (the MjData is never
+    replaced, and each attribute access would build a new view)."""
 
     def __init__(self, model: mujoco.MjModel, scenario: Scenario, idx: ModelIndex):
         self.model, self.data, self.sc, self.idx, self.n = model, mujoco.MjData(model), scenario, idx, 1
+        d = self.data
+        self.qpos, self.qvel, self.ctrl, self.act = d.qpos, d.qvel, d.ctrl, d.act
+        self.force = d.actuator_force
+        self.warning_counts = d.warning.number  # live counts of each mjtWarning
         self._good, self._bad = np.array([False]), np.array([True])
+
+    def warned(self) -> bool:
+        """Whether MuJoCo reported a divergence (and reset the simulation) since the last reset."""
+        return any(_DIVERGENCE_COUNTS(self.warning_counts.tolist()))
 
     def apply(self, ids: np.ndarray, params: list[EpisodeParams]) -> None:
         apply(self.model, self.data, self.sc.spec, self.idx, params[0])
 
     def reset_state(self, ids: np.ndarray, qpos: np.ndarray, qvel: np.ndarray) -> None:
         mujoco.mj_resetData(self.model, self.data)
-        self.data.qpos[:], self.data.qvel[:] = qpos[0], qvel[0]
+        self.qpos[:], self.qvel[:] = qpos[0], qvel[0]
         mujoco.mj_forward(self.model, self.data)
 
     def set_delay(self, ids: np.ndarray, delay: np.ndarray) -> None:
@@ -65,16 +74,14 @@ class SingleBackend:
     def step(self, ids: np.ndarray, command: np.ndarray, disturbance: np.ndarray | None) -> np.ndarray:
         """Advance simulations ids one control period (command, and the load torque if any, held over
         it); returns their 'diverged' flags."""
-        self.data.ctrl[self.idx.drive_ctrl] = command[0]
+        self.ctrl[self.idx.drive_ctrl] = command[0]
         if disturbance is not None:
-            self.data.ctrl[self.idx.disturbance_ctrl] = disturbance[0]
+            self.ctrl[self.idx.disturbance_ctrl] = disturbance[0]
         mujoco.mj_step(self.model, self.data, self.sc.spec.substeps)
-        w = self.data.warning
-        return self._bad if any(w[i].number > 0 for i in DIVERGENCE_WARNINGS) else self._good
+        return self._bad if self.warned() else self._good
 
     def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        d = self.data
-        return d.qpos[None], d.qvel[None], d.act[None], d.actuator_force[None]
+        return self.qpos[None], self.qvel[None], self.act[None], self.force[None]
 
 
 class BatchBackend:
@@ -178,12 +185,10 @@ class ServoCore:
         self._ref = self.ref.tolist()
         self._fric = [(int(a), int(d)) for a, d in zip(self.fric_act, self.fric_dofs, strict=True)]
         self._log_y0, self._log_v0, self._log_u0 = self.log_y[0], self.log_v[0], self.log_u[0]  # row views
-        if self._fast:  # live views of the MjData's warning counters (reset with it)
-            self._warnings = [self.backend.data.warning[i] for i in DIVERGENCE_WARNINGS]
         self._t = self.t.tolist()
         self._disturbance = self.disturbance.tolist() if self.disturbance is not None else None
         self._substeps = spec.substeps
-        self._window = range(sc.preview_steps + 1)
+        self._window = sc.preview_steps + 1  # samples of the reference in the observation
         self._sens = [
             (int(d), bool(e), float(r), float(g))
             for d, e, r, g in zip(
@@ -289,24 +294,24 @@ class ServoCore:
         if not math.isfinite(x):
             raise ValueError(f"actions must be finite, got {action}")
         sc = self.sc
-        a = min(max(x, -1.0), 1.0)
+        a = x if -1.0 <= x <= 1.0 else (1.0 if x > 0.0 else -1.0)  # the clip, as the vector path's
         command = a * sc.action_scale
         if self.jitter_steps[0]:
             j = self.jitter_rng[0].integers(0, self.jitter_steps[0] + 1)
             self.backend.set_delay(self._all, np.array([(self.delay_steps[0] + j) * sc.spec.timestep]))
         b = self.backend
-        b.data.ctrl[self.idx.drive_ctrl] = command
+        b.ctrl[self.idx.drive_ctrl] = command
         if self._disturbance is not None:
-            b.data.ctrl[self.idx.disturbance_ctrl] = self._disturbance[int(self.k[0])]
+            b.ctrl[self.idx.disturbance_ctrl] = self._disturbance[int(self.k[0])]
         mujoco.mj_step(b.model, b.data, self._substeps)
-        diverged = bool(self.diverged[0]) or max(map(_NUMBER, self._warnings)) > 0
+        diverged = b.warned()  # it was False: a diverged episode has ended, and stepping it raised above
         self.diverged[0] = diverged
         k = int(self.k[0]) + 1
         self.k[0] = k
         a_prev = float(self.prev_action[0])
         self.prev_action[0] = a
         # the observation, as _observe
-        qpos, qvel = b.data.qpos.tolist(), b.data.qvel.tolist()  # Python floats: cheaper arithmetic
+        qpos, qvel = b.qpos.tolist(), b.qvel.tolist()  # Python floats: cheaper arithmetic
         noise = (
             self.sensors.noise([self.noise_rng[0]], self.noise_scale[:1])[0].tolist()
             if self.any_noise
@@ -328,7 +333,7 @@ class ServoCore:
         self._log_y0[k] = truth
         self._log_v0[k] = vel
         ref = self._ref
-        window = [ref[k + p] * inv for p in self._window]
+        window = [r * inv for r in ref[k : k + self._window]]
         parts = {"sensors": sensors, "reference": window[:1], "preview": window[1:], "previous_action": [a]}
         obs = sanitize_observation(self.layout.pack(parts))
         e = (truth - ref[k]) / sc.output_scale
@@ -394,12 +399,12 @@ class ServoCore:
     def ground_truth(self, i: int) -> dict:
         """True states of simulation i: joint angles/velocities, bristle states, friction torques."""
         if self._fast:  # the same values from the MjData, with plain indices
-            d = self.backend.data
-            qv, f, s2 = d.qvel, d.actuator_force, self.sigma2[0]
+            b = self.backend
+            qv, f, s2 = b.qvel, b.force, self.sigma2[0]
             return {
-                "qpos": d.qpos.copy(),
+                "qpos": b.qpos.copy(),
                 "qvel": qv.copy(),
-                "bristle": d.act[self.bristle_adr],
+                "bristle": b.act[self.bristle_adr],
                 "friction_torque": np.array(
                     [f[a] - s2[j] * qv[dof] for j, (a, dof) in enumerate(self._fric)]
                 ),

@@ -118,7 +118,7 @@ class ServoEnv(gym.Env, EzPickle):
         obs = self.core.reset(self._ids, [episode_seed], pinned)
         self._started = True
         info = {"params": self.core.params_dict(0), "pinned": pinned, "episode_seed": episode_seed}
-        return obs[0], {**info, **self._truth()}
+        return obs[0], {**info, **self.core.ground_truth(0)}
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         if not self._started:
@@ -128,7 +128,7 @@ class ServoEnv(gym.Env, EzPickle):
         else:
             x = float(check_action(action, 1)[0])
         obs, reward, term, trunc, info = self.core.step_single(x)
-        info.update(self._truth())
+        info.update(self.core.ground_truth(0))
         if term or trunc:
             info["episode_metrics"] = self.core.metrics(0)
         return obs, reward, term, trunc, info
@@ -148,9 +148,6 @@ class ServoEnv(gym.Env, EzPickle):
             self._renderer = None
 
     # --------------------------------------------------------------- helpers for classical controllers
-    def _truth(self) -> dict:
-        return self.core.ground_truth(0)
-
     def command_to_action(self, command: float) -> np.ndarray:
         """Amplifier command (V or N·m) -> action."""
         return np.array([command / self.scenario.action_scale], dtype=np.float32)

@@ -12,13 +12,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from functools import cached_property
+from functools import cached_property, reduce
+from operator import iadd, itemgetter
 from typing import Any, NamedTuple
 
 import numpy as np
 
 OBS_CLIP = 1e6  # observations are clipped here and never NaN (a diverged simulation ends the episode)
-REWARD_FLOOR = -OBS_CLIP  # a diverged step scores this; any other step scores strictly more
 
 
 class Ops(NamedTuple):
@@ -76,10 +76,16 @@ class ObservationLayout:
 
     def pack(self, parts: Mapping[str, Any]) -> Any:
         """Concatenate the blocks in layout order: lists of floats give a list, (n, k) arrays an array."""
-        blocks = [parts[name] for name in self.names]
+        blocks = self._blocks(parts)
         if isinstance(blocks[0], list):
-            return [v for b in blocks for v in b]
+            return reduce(iadd, blocks, [])  # extends one new list: the cheapest for a few short lists
         return np.concatenate(blocks, axis=1)
+
+    @cached_property
+    def _blocks(self) -> Callable[[Mapping[str, Any]], tuple[Any, ...]]:
+        """The non-empty blocks of a parts mapping, in order (a tuple: there are always at least two,
+        the reference and the previous action)."""
+        return itemgetter(*self.names)
 
     def table(self) -> str:
         """The reStructuredText table of the blocks (used in the env docstrings)."""
