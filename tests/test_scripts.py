@@ -1,9 +1,17 @@
 """The command-line front ends run and write what they promise."""
 
+import importlib.util
 import json
 import subprocess
 import sys
 from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from frictiongym.envs.servo_env import ServoEnv
+from frictiongym.envs.vector import ServoVectorEnv
 
 ROOT = Path(__file__).parents[1]
 REQUIRED = [
@@ -61,3 +69,51 @@ def test_bench_physics_prints_a_ratio_per_plant():
     lines = proc.stdout.strip().splitlines()[1:]
     assert {ln.split()[0] for ln in lines} == {"kang_robot", "flexible_servo", "m220"}
     assert all(0.1 < float(ln.split()[-1]) < 10 for ln in lines)
+
+
+def _bench_envs():
+    spec = importlib.util.spec_from_file_location("bench_envs", ROOT / "scripts/bench_envs.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.mark.parametrize("scenario", ["m220_regulation", "kang_regulation", "flexible_speed_step"])
+def test_bench_envs_bare_loops_step_the_envs_physics(scenario):
+    """The speed ratios compare like with like: with a zero action, the bare loops (single and Batch)
+    follow the env's own trajectory bit for bit, from the env's initial state."""
+    bench = _bench_envs()
+    env = ServoEnv(scenario)
+    env.reset(seed=0)
+    bare, data = bench.bare_single(env.core)
+    venv = ServoVectorEnv(scenario, 3)
+    venv.reset(seed=0)
+    vbare, vqpos = bench.bare_vector(venv.core)
+    for _ in range(25):
+        env.step(np.zeros(1, dtype=np.float32))
+        bare()
+        venv.step(np.zeros((3, 1), dtype=np.float32))
+        vbare()
+    assert np.array_equal(data.qpos, env.core.backend.data.qpos)
+    assert np.array_equal(vqpos, venv.core.backend.state()[0])
+    assert not np.array_equal(data.qpos, mujoco.MjData(env.core.model).qpos)  # not a plant at rest
+
+
+def test_bench_envs_prints_ratios():
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "scripts/bench_envs.py"),
+            "--scenarios",
+            "kang_regulation",
+            "--seconds",
+            "0.3",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    rows = [ln.split() for ln in proc.stdout.splitlines()[1:] if ln.startswith("kang_regulation")]
+    assert [r[1:-3] for r in rows] == [["single"], ["vector", "8"], ["vector", "64"]]
+    assert all(0.05 < float(r[-1]) < 2 for r in rows)
