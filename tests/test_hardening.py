@@ -1,6 +1,10 @@
 """Foundation v2 hardening: each behaviour found by trying the envs as a new user would (issue 7)."""
 
+import dataclasses
 import pickle
+import subprocess
+import sys
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -9,10 +13,12 @@ import pytest
 import frictiongym.envs  # noqa: F401
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.plants import plant_spec
-from frictiongym.envs.plants.params import EpisodeParams
+from frictiongym.envs.plants.params import EpisodeParams, rejected_draws
 from frictiongym.envs.plants.sim import PlantSim
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.vector import ServoVectorEnv
+
+ROOT = Path(__file__).parents[1]
 
 
 @pytest.mark.parametrize("plant", ["kang_robot", "m220", "flexible_servo"])
@@ -21,6 +27,32 @@ def test_every_draw_passes_the_checks(plant):
     spec = plant_spec(plant)
     for seed in [66, *range(2000)]:
         EpisodeParams.draw(spec, seed).validate(spec)
+
+
+def test_rejected_draws_counts_what_reset_refuses():
+    """The counter behind scripts/check_draws.py finds the draws a range too wide gives (the load check
+    bypassed with dataclasses.replace; Kang's σ0 stability bound h·sqrt(σ0/J) <= 0.2) and none on the
+    preset."""
+    spec = plant_spec("kang_robot")
+    wide = dataclasses.replace(spec, randomization={**spec.randomization, "sigma0_scale": (0.5, 5.0)})
+    bad = rejected_draws(wide, range(200))
+    assert 50 < len(bad) < 200 and all("sigma0" in why for _, why in bad)
+    with pytest.raises(ConfigError):
+        EpisodeParams.draw(wide, bad[0][0]).validate(wide)
+    assert rejected_draws(spec, range(200)) == []
+
+
+def test_check_draws_script_reports_zero_rejections():
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "scripts/check_draws.py"), "--seeds", "300", "--workers", "1"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    rows = [ln.split() for ln in proc.stdout.splitlines()[1:]]
+    assert {r[1] for r in rows} >= {"kang_robot", "m220", "flexible_servo", "kang_regulation"}
+    assert all(r[2:4] == ["300", "0"] for r in rows)
 
 
 @pytest.mark.parametrize(

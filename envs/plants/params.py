@@ -313,3 +313,16 @@ def check_randomization(spec: PlantSpec) -> None:
             raise ConfigError(
                 "randomization", f"the draw at the corner {values} fails a check ({why}); narrow the ranges"
             )
+
+
+def rejected_draws(spec: PlantSpec, seeds: range) -> list[tuple[int, str]]:
+    """The seeds whose drawn parameters fail validate() (what reset would refuse), with the reason.
+    check_randomization makes this empty for any spec that loads; scripts/check_draws.py counts it over
+    many seeds as an empirical check of that guarantee."""
+    out = []
+    for seed in seeds:
+        try:
+            EpisodeParams.draw(spec, seed).validate(spec)
+        except ConfigError as e:
+            out.append((seed, str(e)))
+    return out
