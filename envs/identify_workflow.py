@@ -123,7 +123,8 @@ def step_from_document() -> tuple[str, dict[str, Any]]:
         f"Points (t s, counts): {list(zip(t, y, strict=True))}, step v = {v} V.",
         "",
         f"- Two-point line (as printed): α1 = {two['alpha1']:.3f}, α2 = {two['alpha2']:.3f}, "
-        f"a = {two['a']:.6f} 1/s, k = {two['k']:.3f} counts/(V·s²) (document: 0.512081, 82421.020583).",
+        f"a = {two['a']:.6f} 1/s, k = {two['k']:.3f} counts/(V·s²) (document: "
+        f"{doc.document_a_per_s}, {doc.document_k_counts_per_v_s2}).",
         f"- Full response θ = α1·t + α2 + α3·e^(-a·t) through the same points: a = {full['a']:.6f} 1/s, "
         f"k = {full['k']:.3f} counts/(V·s²): a differs by {full['a'] / two['a'] - 1:+.2%}, k by "
         f"{full['k'] / two['k'] - 1:+.2%}. The two-point line ignores the exponential term (ERRATA 000), so "
