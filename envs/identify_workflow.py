@@ -33,8 +33,8 @@ from .identification import (
     two_point_step_id,
     write_log,
 )
+from .plants import plant_spec
 from .records import atomic_text, command_line, package_version
-from .units import rad_per_count
 
 # seed 000 §2.3 as printed: (slope V·s/count, intercept V) per direction, as strings (their digits matter)
 DOCUMENT_LINES = {"up": ("2.3517e-6", "0.114716"), "down": ("2.4484e-6", "-0.152784")}
@@ -111,8 +111,6 @@ def _plot_static(fid: FrictionId, unit: str, path: Path, truth: dict[str, float]
 # ------------------------------------------------------------------------------------------- step
 def step_from_document() -> tuple[str, dict[str, Any]]:
     """§2.2: the two-point method as printed, and the full model through the same two points."""
-    from .plants import plant_spec
-
     doc = plant_spec("m220").document
     t, y, v = tuple(doc.step_points_t_s), tuple(doc.step_points_counts), doc.step_input_v
     two = two_point_step_id(t, y, v)
@@ -166,6 +164,11 @@ def step_from_log(log: Log, v: float) -> tuple[str, dict[str, Any]]:
 
 
 # ------------------------------------------------------------------------------------------- friction
+def _m220_rad_per_count() -> float:
+    """The M220 encoders' resolution (rad per count), from the plant's configuration (§2.2)."""
+    return plant_spec("m220").document.rad_per_count
+
+
 def document_table() -> dict[str, np.ndarray]:
     """The §2.3 table (configs/published), counts/s and V."""
     t = np.genfromtxt(configs_dir() / "published" / TABLE, delimiter=",", names=True)
@@ -177,7 +180,7 @@ def friction_from_document() -> tuple[str, dict[str, Any], dict[str, float]]:
     intervals (rows above 7000 counts/s). Returns the report, the results and the override values (the
     recommended fit, in V and V·s/rad)."""
     t = document_table()
-    rad = rad_per_count(16000)
+    rad = _m220_rad_per_count()
     res: dict[str, Any] = {}
     lines = ["## §2.3 Coulomb + viscous friction from the document's table", ""]
     for d, (vk, uk) in (
@@ -351,7 +354,7 @@ def _plot_document(t: dict[str, np.ndarray], values: dict[str, float], path: Pat
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rad = rad_per_count(16000)
+    rad = _m220_rad_per_count()
     fig, ax = plt.subplots(figsize=(6.5, 4))
     for vk, uk, c, s in (
         ("velocity_up_counts_per_s", "control_up_V", "coulomb_pos", 1),

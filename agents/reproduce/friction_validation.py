@@ -4,11 +4,11 @@ speeds both ways, and a stick-slip period on Kang's rotor."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterator
 
 from frictiongym.envs import validation
 from frictiongym.envs.plants import plant_spec
+from frictiongym.envs.units import deg_to_rad
 
 from . import Section, row
 
@@ -41,7 +41,7 @@ def rows(_: None) -> Iterator[dict]:
                     note=f"N·m at v = {r['velocity']:.4g} rad/s vs analytic steady state",
                 )
     spec = plant_spec("kang_robot")
-    r = validation.stickslip_period(spec, "rotor", spec.document.kp_nm_per_rad, math.radians(1.0), 25.0)
+    r = validation.stickslip_period(spec, "rotor", spec.document.kp_nm_per_rad, deg_to_rad(1.0), 25.0)
     yield row(
         "friction.stickslip_period",
         r["reference"],

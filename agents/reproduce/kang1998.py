@@ -12,6 +12,7 @@ import numpy as np
 
 from frictiongym.envs.plants import kang_robot, plant_spec
 from frictiongym.envs.suites import Episode
+from frictiongym.envs.units import rad_to_deg
 
 from ..classical import PD, RDFC, Southward
 from ..evaluate import EpisodeResult, run_episode
@@ -20,10 +21,6 @@ from . import Section, published_node, row, save_figure
 EPISODE = Episode("kang_regulation_20deg", 0, False)  # θ(0) = 20 deg, set-point 0, 20 ms, nominal plant
 SOUTHWARD_PERIODS_MS = (5, 20, 40)
 DELTAS_DEG = (0.02, 0.04)
-
-
-def _deg(x: float) -> float:
-    return math.degrees(x)
 
 
 def plant_rows(bounds: dict[str, float]) -> Iterator[dict]:
@@ -86,7 +83,7 @@ def _published_rdfc(d: float) -> tuple[float, float]:
 def baseline_rows(runs: dict[str, EpisodeResult]) -> Iterator[dict]:
     spec = plant_spec("kang_robot")
     lo, hi = spec.document.theta_L_deg, spec.document.theta_H_deg
-    e_pd = _deg(runs["pd"].log["output"][-1])
+    e_pd = rad_to_deg(runs["pd"].log["output"][-1])
     pd_doc = published_node("kang1998").number("pd_final_error_deg")
     yield row(
         "kang.pd.final_error_deg",
@@ -97,8 +94,10 @@ def baseline_rows(runs: dict[str, EpisodeResult]) -> Iterator[dict]:
         note=f"pass: inside [θ_L, θ_H] = [{lo}, {hi}] deg (eq. 6); the document measured {pd_doc} deg",
         passed=lo <= e_pd <= hi,
     )
-    amps = {ms: _deg(runs[f"southward_{ms}ms"].metrics["limit_cycle_amp"]) for ms in SOUTHWARD_PERIODS_MS}
-    res = math.degrees(spec.sensors[0].resolution)
+    amps = {
+        ms: rad_to_deg(runs[f"southward_{ms}ms"].metrics["limit_cycle_amp"]) for ms in SOUTHWARD_PERIODS_MS
+    }
+    res = rad_to_deg(spec.sensors[0].resolution)
     for ms in SOUTHWARD_PERIODS_MS:
         ok = amps[ms] > 10 * res and (ms == 5 or amps[ms] > amps[{20: 5, 40: 20}[ms]])
         yield row(
@@ -114,7 +113,7 @@ def baseline_rows(runs: dict[str, EpisodeResult]) -> Iterator[dict]:
     for d in DELTAS_DEG:
         doc_e, doc_c = _published_rdfc(d)
         r = runs[f"rdfc_{d}"]
-        e = _deg(r.log["output"][-1])
+        e = rad_to_deg(r.log["output"][-1])
         yield row(
             f"kang.rdfc.{d}.final_error_deg",
             doc_e,
@@ -137,12 +136,12 @@ def baseline_rows(runs: dict[str, EpisodeResult]) -> Iterator[dict]:
         yield row(
             f"kang.rdfc.{d}.symmetric_12b.limit_cycle_amp_deg",
             float("nan"),
-            _deg(s.metrics["limit_cycle_amp"]),
+            rad_to_deg(s.metrics["limit_cycle_amp"]),
             float("nan"),
             relative=False,
             note="ERRATA 001 'symmetric' reading of (12b): sustained chatter (> 10 counts) shows why the "
             "printed reading is followed",
-            passed=_deg(s.metrics["limit_cycle_amp"]) > 10 * res,
+            passed=rad_to_deg(s.metrics["limit_cycle_amp"]) > 10 * res,
         )
 
 
@@ -165,8 +164,8 @@ def figures(runs: dict[str, EpisodeResult], out: Path) -> list[str]:
         fig, (a1, a2) = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
         for k in keys:
             g = runs[k].log
-            a1.plot(g["t"], np.degrees(g["output"]), label=k)
-            a2.plot(g["t"], np.degrees(g["output"]), label=k)
+            a1.plot(g["t"], rad_to_deg(g["output"]), label=k)
+            a2.plot(g["t"], rad_to_deg(g["output"]), label=k)
         a1.set(ylabel="θ (deg)", title=title)
         a1.legend()
         a2.set(ylabel="θ (deg), zoom", xlabel="t (s)", ylim=(-0.06, 0.06))
@@ -182,10 +181,10 @@ def findings(runs: dict[str, EpisodeResult], rows: list[dict]) -> str:
     pub = published_node("kang1998")
     pd_doc = pub.number("pd_final_error_deg")
     z_lo, z_hi = pub.interval("pd_zeta_printed")
-    pd = _deg(runs["pd"].log["output"][-1])
-    lc = {ms: _deg(runs[f"southward_{ms}ms"].metrics["limit_cycle_amp"]) for ms in SOUTHWARD_PERIODS_MS}
+    pd = rad_to_deg(runs["pd"].log["output"][-1])
+    lc = {ms: rad_to_deg(runs[f"southward_{ms}ms"].metrics["limit_cycle_amp"]) for ms in SOUTHWARD_PERIODS_MS}
     grows = all(ok[f"kang.southward.amp_deg.{ms}ms"] for ms in SOUTHWARD_PERIODS_MS)
-    sym = _deg(runs["rdfc_0.02_symmetric"].metrics["limit_cycle_amp"])
+    sym = rad_to_deg(runs["rdfc_0.02_symmetric"].metrics["limit_cycle_amp"])
     lines = [
         "## Kang baselines: findings",
         "",
@@ -204,7 +203,7 @@ def findings(runs: dict[str, EpisodeResult], rows: list[dict]) -> str:
     ]
     for d in DELTAS_DEG:
         doc_e, doc_c = _published_rdfc(d)
-        e, c = _deg(runs[f"rdfc_{d}"].log["output"][-1]), cycles(runs[f"rdfc_{d}"])
+        e, c = rad_to_deg(runs[f"rdfc_{d}"].log["output"][-1]), cycles(runs[f"rdfc_{d}"])
         lines.append(
             f"- **RDFC δ = {d} deg** ends at e_ss = {e:.4f} deg (Kang: {doc_e}), "
             f"{'within' if abs(e) <= d else 'OUTSIDE'} ±δ, after {c:g} cycles (Kang: {doc_c:g})."

@@ -5,7 +5,6 @@ limit cycles with and without friction compensation (§4.3, §6.3; Fig. 4.2-4.4,
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -14,6 +13,7 @@ import numpy as np
 from frictiongym.envs import metrics
 from frictiongym.envs.plants import flexible_servo, plant_spec
 from frictiongym.envs.suites import Episode
+from frictiongym.envs.units import rad_to_deg
 
 from ..classical.state_feedback import (
     StateFeedback,
@@ -59,7 +59,7 @@ def plant_rows(_: None) -> Iterator[dict]:
                 yield row(
                     f"flexible.{name}.{fi:g}Hz.{label}.phase_deg",
                     0.0,
-                    math.degrees(np.angle(resp[i, c] / G[i, c])),
+                    rad_to_deg(float(np.angle(resp[i, c] / G[i, c]))),
                     1.0,
                     relative=False,
                     note="phase error vs G(jω), deg",
@@ -80,8 +80,8 @@ def plant_figures(_: None, out: Path) -> list[str]:
         a1.loglog(f, abs(G[:, c]), label=f"{name} eq. 3.2/3.3")
         a1.loglog(f, abs(L[:, c]), ":", color="k")
         a1.loglog(fs, abs(S[:, c]), "o")
-        a2.semilogx(f, np.degrees(np.unwrap(np.angle(G[:, c]))))
-        a2.semilogx(fs, np.degrees(np.unwrap(np.angle(S[:, c]))), "o")
+        a2.semilogx(f, rad_to_deg(np.unwrap(np.angle(G[:, c]))))
+        a2.semilogx(fs, rad_to_deg(np.unwrap(np.angle(S[:, c]))), "o")
     a1.set(
         ylabel="|G| (V/V)",
         title="Flexible servo: parameters (lines), linearised MuJoCo (dots), sine runs (o)",
