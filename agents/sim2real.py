@@ -31,7 +31,6 @@ from frictiongym.envs.suites import Episode
 from . import engine, registry, stats
 
 SEEDS = 700_000  # sim-to-real episode seeds start here (disjoint from every suite and from training)
-NOMINAL = {"asymmetry_shift": 0.0, "delay_s": 0.0}  # additive axes; the others are scales (nominal 1)
 
 
 @dataclass(frozen=True)

@@ -30,6 +30,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from .config import ConfigError
+from .units import deg_to_rad
 
 # What each experiment can and cannot identify (the docs and the report print this table).
 IDENTIFIABLE = {
@@ -44,9 +45,8 @@ ALPHA = 0.05  # 95 % intervals
 
 
 # ------------------------------------------------------------------------------------------- logs
-POSITION_UNITS = {"rad": 1.0, "deg": math.pi / 180.0}
-SPEED_UNITS = {"rad_s": 1.0, "deg_s": math.pi / 180.0}
-COMMAND_UNITS = ("V", "Nm")
+POSITION_UNITS = {"rad": 1.0, "deg": deg_to_rad(1.0)}  # a log column's unit -> its factor to SI
+SPEED_UNITS = {"rad_s": 1.0, "deg_s": deg_to_rad(1.0)}
 
 
 @dataclass
