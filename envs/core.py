@@ -15,6 +15,7 @@ import mujoco
 import numpy as np
 from mujoco.batch import Batch, SimulationError
 
+from .friction import joint_friction_torque
 from .metrics import episode_metrics
 from .plants.mjcf import to_mjcf
 from .plants.params import EpisodeParams, ModelIndex, apply, apply_batch
@@ -406,7 +407,7 @@ class ServoCore:
                 "qvel": qv.copy(),
                 "bristle": b.act[self.bristle_adr],
                 "friction_torque": np.array(
-                    [f[a] - s2[j] * qv[dof] for j, (a, dof) in enumerate(self._fric)]
+                    [joint_friction_torque(f[a], s2[j], qv[dof]) for j, (a, dof) in enumerate(self._fric)]
                 ),
             }
         qpos, qvel, act, force = self.backend.state()
@@ -415,7 +416,9 @@ class ServoCore:
             "qpos": qpos[i].copy(),
             "qvel": qv.copy(),
             "bristle": act[i, self.bristle_adr],
-            "friction_torque": force[i, self.fric_act] - self.sigma2[i] * qv[self.fric_dofs],
+            "friction_torque": joint_friction_torque(
+                force[i, self.fric_act], self.sigma2[i], qv[self.fric_dofs]
+            ),
         }
 
     def params_dict(self, i: int) -> dict:

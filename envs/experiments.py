@@ -70,7 +70,7 @@ class Rig:
         """Run `steps` control periods with u_k = command(k, reading); rows of (t, u, reading, segment)."""
         t0, h = self.clock, self.spec.control_period
         self.clock += steps * h
-        y = self.read(self.sim._result().measurement)
+        y = self.read(self.sim.read().measurement)
         ts, us, ys, ss = [], [], [], []
         for k in range(steps):
             u = float(np.clip(command(k, y), -self.spec.command_limit, self.spec.command_limit))
@@ -150,7 +150,7 @@ def breakaway(rig: Rig, rate: float, limit: float, threshold: float) -> Log:
     h = rig.spec.control_period
     for seg, sign in enumerate((1.0, -1.0)):
         rig.rest()
-        y0 = rig.read(rig.sim._result().measurement)
+        y0 = rig.read(rig.sim.read().measurement)
         n = math.ceil(limit / rate / h)
         part = rig.run(lambda k, y, sign=sign: sign * rate * k * h, n, seg)
         moved = [abs(y - y0) >= 2 * threshold for y in part[2]]

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -126,6 +127,13 @@ class LuGreParams:
 # where that is below 1 % of J.
 EXPLICIT_LIMITS = {"h_omega": 0.2, "h_sigma1_over_J": 0.5}
 IMPLICIT_LIMIT_H_SIGMA1_OVER_J = 0.01
+
+
+def joint_friction_torque(actuator_force: Any, sigma2: Any, velocity: Any) -> Any:
+    """The friction torque on a joint (N·m), -F + b above: the friction actuator's force
+    (-(σ0·z + σ1·ż) + b) minus σ2·v, because MuJoCo applies an actuator's damping as a passive force,
+    outside actuator_force. Floats or arrays (one entry per frictional joint)."""
+    return actuator_force - sigma2 * velocity
 
 
 def check_numerics(p: LuGreParams, inertia: float, timestep: float, integrator: str, field: str) -> None:

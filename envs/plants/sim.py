@@ -9,6 +9,7 @@ import mujoco
 import numpy as np
 
 from ..core import DIVERGENCE_WARNINGS
+from ..friction import joint_friction_torque
 from ..sampler import JITTER, SENSOR_NOISE, stream
 from ..sensors import SensorArrays
 from . import plant_spec
@@ -69,7 +70,7 @@ class PlantSim:
         self.data.qpos[:] = self.spec.full_state(qpos)
         self.data.qvel[:] = self.spec.full_state(qvel)
         mujoco.mj_forward(self.model, self.data)
-        return self._result()
+        return self.read()
 
     def _seed(self, seed: int) -> None:
         """Sensor noise and delay jitter streams of the episode seed, named as in the env (sampler.py)."""
@@ -87,9 +88,11 @@ class PlantSim:
                 self.params.delay_steps(self.spec) + j
             ) * self.spec.timestep
         mujoco.mj_step(self.model, self.data, nstep or self.spec.substeps)
-        return self._result()
+        return self.read()
 
-    def _result(self) -> StepResult:
+    def read(self) -> StepResult:
+        """The sensors sampled now (one draw of the noise stream, as at the end of a step), the true
+        joint states, and whether the state is not finite or MuJoCo reported a divergence."""
         d = self.data
         diverged = bool(
             not np.all(np.isfinite(d.qpos))
@@ -106,7 +109,7 @@ class PlantSim:
         out = []
         for a in self.idx.friction:
             dof = int(m.jnt_dofadr[m.actuator_trnid[a, 0]])
-            out.append(d.actuator_force[a] - m.actuator_damping[a] * d.qvel[dof])
+            out.append(joint_friction_torque(d.actuator_force[a], m.actuator_damping[a], d.qvel[dof]))
         return np.array(out)
 
     def bristle_state(self) -> np.ndarray:
