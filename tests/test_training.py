@@ -252,3 +252,26 @@ def test_sim2real_on_a_tiny_grid(tmp_path):
     episodes, _ = sim2real.plan("kang_regulation", 1, 2, 1)
     assert n == 1 + 2 * len(episodes)
     assert main(args) == 0 and len((tmp_path / "episodes.csv").read_text().splitlines()) == n
+
+
+@pytest.mark.parametrize("algo", ["SAC", "TD3", "TQC", "PPO"])
+def test_policy_actions_equal_sb3_predict(tmp_path, algo):
+    """SB3Policy's own prediction path (no per-call eval-mode switch) gives model.predict's actions
+    bit for bit, in range and out of it, also after training switched the policy back to train mode."""
+    (cfg,) = load_config(write_config(tmp_path, algo))
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    venv = DummyVecEnv([lambda: make_env(cfg, 0, 0)])
+    model = build_model(cfg, venv, 0, None)
+    import torch
+
+    with torch.no_grad():  # a non-trivial actor: the zeroed output layer would make every action equal
+        for p in model.policy.parameters():
+            p.add_(0.05 * torch.randn_like(p))
+    policy = SB3Policy(model, inputs=cfg.inputs, base=registry.BUILTIN["PID"]())  # the config's residual base
+    xs = np.random.default_rng(0).normal(0.0, 3.0, (50, *model.observation_space.shape)).astype(np.float32)
+    model.policy.set_training_mode(True)
+    got = np.array([policy._predict(x) for x in xs])
+    assert not model.policy.training
+    want = np.array([model.predict(x, deterministic=True)[0] for x in xs])
+    assert np.array_equal(got, want) and len(np.unique(got)) > 10
