@@ -215,7 +215,7 @@ def protocol(plant: str | PlantSpec) -> Protocol:
     return Protocol(
         speeds=speeds,
         hold_s=12.0 if compliant else 2.0,
-        step_v=0.25 if plant == "m220" else 2.5 * fs,  # M220: the §2.2 step of 0.25 V
+        step_v=spec.document.step_input_v if plant == "m220" else 2.5 * fs,  # M220: §2.2's step
         step_s=5.0,
         ramp_rate=fs / 20.0,
         ramp_limit=3.0 * fs,

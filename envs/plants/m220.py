@@ -199,9 +199,7 @@ def reflected_inertia_sim(overrides: dict, torque_nm: float = 0.01, duration: fl
     return torque_nm / (2.0 * curvature)
 
 
-def step_counts(
-    gain: float, times: tuple[float, ...], v: float = 0.25, overrides: dict | None = None
-) -> np.ndarray:
+def step_counts(gain: float, times: tuple[float, ...], v: float, overrides: dict | None = None) -> np.ndarray:
     """Drive-encoder counts of the simulated M220 open-loop step of v volts at the given times."""
     # a nominal experiment: no randomization, so other gains do not trip the range checks (σ0 ∝ gain)
     ov = {
@@ -222,10 +220,9 @@ def step_counts(
     return np.array(out)
 
 
-def fit_gain(
-    times: tuple[float, float] = (4.44, 4.91), counts: tuple[float, float] = (100080, 118992), v: float = 0.25
-) -> float:
-    """Plant gain (counts/(V·s²)) whose simulated step best matches the measured points (relative LSQ)."""
+def fit_gain(times: tuple[float, float], counts: tuple[float, float], v: float) -> float:
+    """Plant gain (counts/(V·s²)) whose simulated step of v volts best matches the measured points
+    (times s, counts; §2.2's are in m220.yaml's identified section), relative least squares."""
     target = np.asarray(counts, dtype=float)
 
     def cost(g: float) -> float:
