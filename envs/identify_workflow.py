@@ -9,6 +9,7 @@ import datetime
 import hashlib
 import json
 import math
+import re
 from pathlib import Path
 from typing import Any
 
@@ -33,11 +34,9 @@ from .identification import (
     two_point_step_id,
     write_log,
 )
-from .plants import plant_spec
+from .plants import plant_config, plant_spec
 from .records import atomic_text, command_line, package_version
 
-# seed 000 §2.3 as printed: (slope V·s/count, intercept V) per direction, as strings (their digits matter)
-DOCUMENT_LINES = {"up": ("2.3517e-6", "0.114716"), "down": ("2.4484e-6", "-0.152784")}
 TABLE = "iurian2005_m220_friction_table.csv"
 RECOMMENDED_MIN_SPEED_COUNTS_S = 7000.0  # above the low-speed hump of rows 1-4 (stick-slip, Stribeck)
 
@@ -169,6 +168,21 @@ def _m220_rad_per_count() -> float:
     return plant_spec("m220").document.rad_per_count
 
 
+def document_lines() -> dict[str, tuple[str, str]]:
+    """§2.3's fitted lines as printed: (slope V·s/count, intercept V) per direction, as strings (their
+    digits matter). They are the M220 preset's friction (configs/plants/m220.yaml); the shortest repr of
+    a float gives back the printed digits (none of them ends in 0)."""
+
+    def printed(x: float) -> str:
+        return re.sub(r"e([+-])0+(\d)", r"e\1\2", repr(x))  # 2.3517e-06 -> 2.3517e-6, as printed
+
+    f = plant_config("m220")["friction"]
+    return {
+        "up": (printed(f["viscous_pos_v_s_per_count"]), printed(f["coulomb_pos_v"])),
+        "down": (printed(f["viscous_neg_v_s_per_count"]), printed(-f["coulomb_neg_v"])),
+    }
+
+
 def document_table() -> dict[str, np.ndarray]:
     """The §2.3 table (configs/published), counts/s and V."""
     t = np.genfromtxt(configs_dir() / "published" / TABLE, delimiter=",", names=True)
@@ -179,7 +193,7 @@ def friction_from_document() -> tuple[str, dict[str, Any], dict[str, float]]:
     """§2.3: which rows reproduce the printed lines (exhaustive search), and the recommended fit with 95 %
     intervals (rows above 7000 counts/s). Returns the report, the results and the override values (the
     recommended fit, in V and V·s/rad)."""
-    t = document_table()
+    t, printed = document_table(), document_lines()
     rad = _m220_rad_per_count()
     res: dict[str, Any] = {}
     lines = ["## §2.3 Coulomb + viscous friction from the document's table", ""]
@@ -187,7 +201,7 @@ def friction_from_document() -> tuple[str, dict[str, Any], dict[str, float]]:
         ("up", ("velocity_up_counts_per_s", "control_up_V")),
         ("down", ("velocity_down_counts_per_s", "control_down_V")),
     ):
-        slope, intercept = DOCUMENT_LINES[d]
+        slope, intercept = printed[d]
         rows = rows_reproducing(t[vk], t[uk], slope, intercept)
         all_rows = coulomb_viscous_fit(t[vk], t[uk])
         rec = coulomb_viscous_fit(t[vk], t[uk], RECOMMENDED_MIN_SPEED_COUNTS_S)

@@ -32,7 +32,7 @@ from frictiongym.envs.identification import (
     two_point_step_id,
     write_log,
 )
-from frictiongym.envs.identify_workflow import document_table, friction_from_document
+from frictiongym.envs.identify_workflow import document_lines, document_table, friction_from_document
 from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.units import rad_per_count
 from frictiongym.scripts.identify import main
@@ -81,9 +81,10 @@ def test_document_step_numbers_and_the_full_model_through_the_points():
 def test_document_friction_lines_come_from_exactly_one_subset_of_rows():
     """Of all subsets of the 16 rows, exactly one per direction reproduces every printed digit of F_C and
     F_v (§2.3): up leaves out rows 1, 3, 4; down leaves out rows 2, 3, 4."""
-    t = document_table()
-    up = rows_reproducing(t["velocity_up_counts_per_s"], t["control_up_V"], "2.3517e-6", "0.114716")
-    down = rows_reproducing(t["velocity_down_counts_per_s"], t["control_down_V"], "2.4484e-6", "-0.152784")
+    t, printed = document_table(), document_lines()  # the printed digits, from the M220 preset
+    assert printed == {"up": ("2.3517e-6", "0.114716"), "down": ("2.4484e-6", "-0.152784")}
+    up = rows_reproducing(t["velocity_up_counts_per_s"], t["control_up_V"], *printed["up"])
+    down = rows_reproducing(t["velocity_down_counts_per_s"], t["control_down_V"], *printed["down"])
     assert up == [[2, *range(5, 17)]] and down == [[1, *range(5, 17)]]
 
 
