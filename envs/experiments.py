@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .identification import Log
-from .plants import plant_spec
+from .plants import plant_module, plant_spec
 from .plants.params import EpisodeParams, spec_with
 from .plants.sim import PlantSim
 from .plants.spec import PlantSpec
@@ -202,10 +202,8 @@ def protocol(plant: str | PlantSpec) -> Protocol:
     fs = max(nominal.static_pos, nominal.static_neg)
     sensor = [s for s in spec.sensors if s.joint == spec.actuator_joint]
     encoder = [s for s in sensor if s.kind == "encoder"]
-    # speeds: M220 §2.3 held 150-40000 counts/s (0.06-15.7 rad/s); Kang §6 identified with 0.05 deg/s
-    # ramps and regulates within degrees (0.5-16 deg/s here); Wallenborg's references are 1 V = 10 rad/s
-    ranges = {"m220": (0.06, 15.7), "kang_robot": (0.0087, 0.28), "flexible_servo": (0.5, 16.0)}
-    lo, hi = ranges.get(plant, (0.05, 5.0))
+    # hold speeds: the plant module's, from its document (a plant without them: 0.05-5 rad/s)
+    lo, hi = getattr(plant_module(plant), "IDENTIFICATION_SPEEDS_RAD_S", (0.05, 5.0))
     speeds = tuple(float(x) for x in np.geomspace(lo, hi, 8))
     # breakaway: motion beyond presliding. LuGre's presliding displacement grows as -(Fs/σ0)·ln(1 - F/Fs)
     # while the force nears Fs, so a threshold of n·Fs/σ0 fires at F = (1 - e^-n)·Fs: n = 50 keeps that
@@ -215,7 +213,7 @@ def protocol(plant: str | PlantSpec) -> Protocol:
     return Protocol(
         speeds=speeds,
         hold_s=12.0 if compliant else 2.0,
-        step_v=spec.document.step_input_v if plant == "m220" else 2.5 * fs,  # M220: §2.2's step
+        step_v=getattr(spec.document, "step_input_v", 2.5 * fs),  # the document's step (M220 §2.2), if any
         step_s=5.0,
         ramp_rate=fs / 20.0,
         ramp_limit=3.0 * fs,

@@ -20,6 +20,8 @@ from .spec import JointSpec, PlantSpec, SensorSpec, SpringSpec, randomization, s
 MAX_TORQUE_NM = 10.0  # friction levels: the motor gives 0.025 N·m per volt at ±10 V
 MAX_INERTIA_KG_M2 = 1.0  # the shafts are 22e-6 and 150e-6 kg·m²
 MAX_STIFFNESS_NM_PER_RAD = 1e3
+# identification holds (envs/experiments.py): the references are 1 V = 10 rad/s (§4), 0.5-16 rad/s here
+IDENTIFICATION_SPEEDS_RAD_S = (0.5, 16.0)
 
 
 def build(cfg: Node, friction_model: str) -> PlantSpec:

@@ -24,6 +24,8 @@ from .spec import BeltSpec, JointSpec, PlantSpec, SensorSpec, randomization, sam
 
 PULLEY_TEETH = (18, 24, 36, 72)  # SR pulley table, §2.1.3
 MAX_VOLTS = 100.0  # friction levels in volts at the amplifier input (the D/A range is ±10 V)
+# identification holds (envs/experiments.py): §2.3 held 150-40000 counts/s, i.e. 0.06-15.7 rad/s
+IDENTIFICATION_SPEEDS_RAD_S = (0.06, 15.7)
 MAX_INERTIA_KG_M2 = 10.0
 
 
