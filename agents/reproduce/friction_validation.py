@@ -7,18 +7,16 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 from frictiongym.envs import validation
-from frictiongym.envs.plants import plant_spec
+from frictiongym.envs.plants import plant_names, plant_spec
 from frictiongym.envs.units import deg_to_rad
 
 from . import Section, row
 
-JOINTS = {"kang_robot": "rotor", "flexible_servo": "shaft1", "m220": "drive"}
-
 
 def rows(_: None) -> Iterator[dict]:
-    for plant, joint in JOINTS.items():
+    for plant in plant_names():  # each plant's friction element, on its actuated joint
         spec = plant_spec(plant)
-        p = spec.joints[spec.joint_index(joint)].friction
+        joint, p = spec.actuator_joint, spec.drive_friction
         for d, name in ((1, "pos"), (-1, "neg")):
             r = validation.breakaway(spec, joint, d)
             yield row(
