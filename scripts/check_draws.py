@@ -32,6 +32,8 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=100_000, help="seeds 0 .. N-1 per preset and scenario")
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
+    if args.seeds < 1 or args.workers < 1:
+        ap.error("--seeds and --workers must be at least 1")
     specs = {f"plant {p}": plant_spec(p) for p in plant_names()}
     specs |= {f"scenario {s}": load_scenario(s).spec for s in scenario_names()}
     starts = range(0, args.seeds, CHUNK)
