@@ -45,6 +45,11 @@ DIVERGENCE_WARNINGS = np.array(
 _DIVERGENCE_COUNTS = itemgetter(*DIVERGENCE_WARNINGS.tolist())  # their counts from a list of all counts
 
 
+def mujoco_diverged(warning_counts: np.ndarray) -> bool:
+    """Whether an MjData's warning counts (`data.warning.number`) show a divergence warning."""
+    return any(_DIVERGENCE_COUNTS(warning_counts.tolist()))
+
+
 class SingleBackend:
     """One MjData. Its arrays are read and written through views made once (the MjData is never
     replaced, and each attribute access would build a new view)."""
@@ -59,7 +64,7 @@ class SingleBackend:
 
     def warned(self) -> bool:
         """Whether MuJoCo reported a divergence (and reset the simulation) since the last reset."""
-        return any(_DIVERGENCE_COUNTS(self.warning_counts.tolist()))
+        return mujoco_diverged(self.warning_counts)
 
     def apply(self, ids: np.ndarray, params: list[EpisodeParams]) -> None:
         apply(self.model, self.data, self.sc.spec, self.idx, params[0])

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from ..core import DIVERGENCE_WARNINGS
+from ..core import mujoco_diverged
 from ..friction import joint_friction_torque
 from ..sampler import JITTER, SENSOR_NOISE, stream
 from ..sensors import SensorArrays
@@ -97,7 +97,7 @@ class PlantSim:
         diverged = bool(
             not np.all(np.isfinite(d.qpos))
             or not np.all(np.isfinite(d.qvel))
-            or any(d.warning[i].number > 0 for i in DIVERGENCE_WARNINGS)
+            or mujoco_diverged(d.warning.number)
         )
         noise = self.sensors.noise([self.rng], np.array([self.params.noise_scale]))
         meas = self.sensors.measure(d.qpos[None], d.qvel[None], noise)[0]
