@@ -69,17 +69,17 @@ def residual_action(base_action: np.ndarray, residual: np.ndarray, alpha: float)
 
 def algorithm_class(algo: str) -> Any:
     """The stable-baselines3 or sb3-contrib class called algo (e.g. "SAC", "TQC", "RecurrentPPO")."""
+    missing = []
     for package in ("stable_baselines3", "sb3_contrib"):
         try:
-            cls_ = getattr(importlib.import_module(package), algo, None)
+            module = importlib.import_module(package)
         except ImportError:
-            cls_ = None
-        if cls_ is not None:
+            missing.append(package)
+            continue
+        if (cls_ := getattr(module, algo, None)) is not None:
             return cls_
-    raise ValueError(
-        f"algorithm {algo!r} is not a stable-baselines3 or sb3-contrib class "
-        "(sb3-contrib algorithms need `pip install -e .[rl]`)"
-    )
+    hint = f" ({' and '.join(missing)} not installed: pip install -e '.[rl]')" if missing else ""
+    raise ValueError(f"algorithm {algo!r} is not a stable-baselines3 or sb3-contrib class{hint}")
 
 
 def sha256(path: str | Path) -> str:

@@ -51,7 +51,8 @@ def main(argv: list[str] | None = None) -> int:
         "--models",
         nargs="*",
         type=Path,
-        help="saved-model folders (manifest.yaml); default: the committed ones (agents/models/headline)",
+        help="saved-model folders (manifest.yaml); default: the committed ones (agents/models/headline); "
+        "--models alone: none (classical and plug-in controllers only, no rl extra needed)",
     )
     add_backend_arguments(ap)
     ap.add_argument("--out", type=Path, default=Path("out/leaderboard"))

@@ -275,3 +275,18 @@ def test_policy_actions_equal_sb3_predict(tmp_path, algo):
     assert not model.policy.training
     want = np.array([model.predict(x, deterministic=True)[0] for x in xs])
     assert np.array_equal(got, want) and len(np.unique(got)) > 10
+
+
+def test_algorithm_class_names_the_missing_rl_extra(monkeypatch):
+    from frictiongym.agents import learned
+
+    assert learned.algorithm_class("TQC").__name__ == "TQC"
+    with pytest.raises(ValueError, match=r"'Nope' is not a stable-baselines3 or sb3-contrib class$"):
+        learned.algorithm_class("Nope")
+
+    def no_sb3(name: str):
+        raise ImportError(name)
+
+    monkeypatch.setattr(learned.importlib, "import_module", no_sb3)
+    with pytest.raises(ValueError, match=r"stable_baselines3 and sb3_contrib not installed: pip install"):
+        learned.algorithm_class("SAC")
