@@ -3,6 +3,7 @@
 import os
 import subprocess
 import sys
+import warnings
 
 import gymnasium as gym
 import numpy as np
@@ -30,6 +31,10 @@ def make(scenario, **kw):
 def test_check_env_passes_for_every_scenario(scenario):
     env = make(scenario, randomize=True, episode_s=1.0)
     check_env(env.unwrapped, skip_render_check=True)
+    sb3_checker = pytest.importorskip("stable_baselines3.common.env_checker")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # SB3's checker reports problems as warnings: none allowed
+        sb3_checker.check_env(env.unwrapped, warn=True)
 
 
 def test_wrong_plant_for_id_is_rejected():
