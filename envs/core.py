@@ -402,8 +402,9 @@ class ServoCore:
         return sanitize_observation(self.layout.pack(parts)), truth
 
     # ------------------------------------------------------------------ ground truth and metrics
-    def ground_truth(self, i: int) -> dict:
-        """True states of simulation i: joint angles/velocities, bristle states, friction torques."""
+    def ground_truth(self, i: int | slice) -> dict:
+        """True states of simulation i (or one row per simulation of a slice): joint angles (rad) and
+        velocities (rad/s), bristle deflections (rad), friction torques (N·m)."""
         if self._fast:  # the same values from the MjData, with plain indices
             b = self.backend
             qv, f, s2 = b.qvel, b.force, self.sigma2[0]
@@ -422,7 +423,7 @@ class ServoCore:
             "qvel": qv.copy(),
             "bristle": act[i, self.bristle_adr],
             "friction_torque": joint_friction_torque(
-                force[i, self.fric_act], self.sigma2[i], qv[self.fric_dofs]
+                force[i, self.fric_act], self.sigma2[i], qv[..., self.fric_dofs]
             ),
         }
 

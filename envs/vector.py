@@ -76,6 +76,11 @@ class ServoVectorEnv(VectorEnv):
         self._all = np.arange(num_envs)
         self._started = False
 
+    def ground_truth(self) -> dict[str, np.ndarray]:
+        """True states of every env now, one row each: what a single env puts in its info (qpos rad,
+        qvel rad/s, bristle rad, friction_torque N·m). A method, not info, so that step() stays cheap."""
+        return self.core.ground_truth(slice(None))
+
     def __reduce__(self):
         raise TypeError(
             "ServoVectorEnv cannot be pickled: it holds a mujoco.batch.Batch and its threads. Build it where "

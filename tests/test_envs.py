@@ -172,13 +172,16 @@ def test_vector_env_matches_single_envs_bit_for_bit_across_autoresets(scenario, 
     for _ in range(2 * v.scenario.episode_steps + 3):
         a = rng.uniform(-1, 1, (3, 1)).astype(np.float32)
         o, r, *_ = v.step(a)
+        truth = v.ground_truth()
         for i, s in enumerate(singles):
             if done[i]:
-                oi, ri, done[i] = s.reset()[0], 0.0, False
+                (oi, info), ri, done[i] = s.reset(), 0.0, False
             else:
-                oi, ri, te, tr, _ = s.step(a[i])
+                oi, ri, te, tr, info = s.step(a[i])
                 done[i] = te or tr
             assert np.array_equal(o[i], oi) and r[i] == ri
+            for key in ("qpos", "qvel", "bristle", "friction_torque"):  # the single env's info, as rows
+                assert np.array_equal(truth[key][i], info[key]), key
 
 
 def test_sb3_adapter_autoresets_with_terminal_observation():
