@@ -81,6 +81,10 @@ class ServoVectorEnv(VectorEnv):
         qvel rad/s, bristle rad, friction_torque N·m). A method, not info, so that step() stays cheap."""
         return self.core.ground_truth(slice(None))
 
+    def params(self) -> list[dict[str, Any]]:
+        """Each env's current episode parameters: what a single env's reset info["params"] holds."""
+        return [self.core.params_dict(i) for i in range(self.num_envs)]
+
     def __reduce__(self):
         raise TypeError(
             "ServoVectorEnv cannot be pickled: it holds a mujoco.batch.Batch and its threads. Build it where "

@@ -166,8 +166,9 @@ def test_vector_env_matches_single_envs_bit_for_bit_across_autoresets(scenario, 
     v = ServoVectorEnv(scenario, 3, nthread=2, randomize=True, episode_s=0.4, overrides=overrides)
     singles = [make(scenario, randomize=True, episode_s=0.4, overrides=overrides) for _ in range(3)]
     o, _ = v.reset(seed=50)
-    so = [s.reset(seed=50 + i)[0] for i, s in enumerate(singles)]
+    so, sinfo = zip(*(s.reset(seed=50 + i) for i, s in enumerate(singles)), strict=True)
     assert all(np.array_equal(o[i], so[i]) for i in range(3))
+    assert v.params() == [info["params"] for info in sinfo]
     rng, done = np.random.default_rng(1), [False] * 3
     for _ in range(2 * v.scenario.episode_steps + 3):
         a = rng.uniform(-1, 1, (3, 1)).astype(np.float32)
@@ -176,6 +177,7 @@ def test_vector_env_matches_single_envs_bit_for_bit_across_autoresets(scenario, 
         for i, s in enumerate(singles):
             if done[i]:
                 (oi, info), ri, done[i] = s.reset(), 0.0, False
+                assert v.params()[i] == info["params"]  # the autoreset drew the same episode
             else:
                 oi, ri, te, tr, info = s.step(a[i])
                 done[i] = te or tr
