@@ -13,6 +13,7 @@ from gymnasium.utils.env_checker import check_env
 import frictiongym.envs  # noqa: F401  (registers the ids)
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.scenario import load_scenario, scenario_names
+from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.suites import load_suite, suite_names
 from frictiongym.envs.vector import ServoVectorEnv, make_sb3_vec_env
 
@@ -35,6 +36,25 @@ def test_check_env_passes_for_every_scenario(scenario):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # SB3's checker reports problems as warnings: none allowed
         sb3_checker.check_env(env.unwrapped, warn=True)
+
+
+def test_ground_truth_is_a_method_and_in_info_on_request():
+    """The same values either way, without changing the episode; left out of info by default."""
+    keys = {"qpos", "qvel", "bristle", "friction_torque"}
+    plain = ServoEnv("m220_reversal_tracking", randomize=True)
+    full = ServoEnv("m220_reversal_tracking", randomize=True, ground_truth_in_info=True)
+    (_, ip), (_, i_full) = plain.reset(seed=4), full.reset(seed=4)
+    assert not keys & set(ip) and keys <= set(i_full)
+    rng = np.random.default_rng(0)
+    for _ in range(30):
+        a = rng.uniform(-1, 1, 1).astype(np.float32)
+        (op, rp, *_, ip), (of, rf, *_, i_full) = plain.step(a), full.step(a)
+        assert np.array_equal(op, of) and rp == rf and not keys & set(ip)
+        truth = plain.ground_truth()
+        assert all(np.array_equal(truth[k], i_full[k]) for k in keys)
+    assert np.any(truth["friction_torque"] != 0.0) and np.any(truth["bristle"] != 0.0)
+    with pytest.raises(ConfigError, match="ground_truth_in_info"):
+        ServoEnv("kang_regulation", ground_truth_in_info="yes")
 
 
 def test_wrong_plant_for_id_is_rejected():
@@ -86,7 +106,8 @@ def test_same_seed_same_episode_different_seed_different_episode():
 
 
 def test_episode_structure_ground_truth_and_metrics():
-    env = gym.make("frictiongym/FlexibleServo-v0")  # flexible_speed_step: 10 s at 40 ms
+    # flexible_speed_step: 10 s at 40 ms
+    env = gym.make("frictiongym/FlexibleServo-v0", ground_truth_in_info=True)
     _, info = env.reset(seed=0)
     assert {"params", "qpos", "qvel", "bristle", "friction_torque"} <= set(info)
     assert info["qvel"][0] == pytest.approx(1.0)  # ω1(0) = 1 rad/s, Wallenborg §4.3
@@ -164,7 +185,10 @@ NOISY = {  # sensor noise and delay jitter on, to exercise those streams too
 )
 def test_vector_env_matches_single_envs_bit_for_bit_across_autoresets(scenario, overrides):
     v = ServoVectorEnv(scenario, 3, nthread=2, randomize=True, episode_s=0.4, overrides=overrides)
-    singles = [make(scenario, randomize=True, episode_s=0.4, overrides=overrides) for _ in range(3)]
+    singles = [
+        make(scenario, randomize=True, episode_s=0.4, overrides=overrides, ground_truth_in_info=True)
+        for _ in range(3)
+    ]
     o, _ = v.reset(seed=50)
     so, sinfo = zip(*(s.reset(seed=50 + i) for i, s in enumerate(singles)), strict=True)
     assert all(np.array_equal(o[i], so[i]) for i in range(3))
