@@ -39,7 +39,7 @@ from gymnasium import spaces
 
 from frictiongym.envs.config import ConfigError, Node, load_yaml
 from frictiongym.envs.plants.spec import RANDOMIZATION_KEYS
-from frictiongym.envs.records import atomic_write, command_line, csv_text
+from frictiongym.envs.records import atomic_text, atomic_write, command_line, csv_text
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.suites import load_suite
@@ -538,7 +538,7 @@ class TrainingRun:
         if row["admissible"] and (self.best is None or row["main"] < self.best["main"]):
             self.best = row
             _save_model(model, model.get_env(), self.out)
-        atomic_write(self.out / "validation.csv", lambda p: p.write_text(csv_text(self.history)))
+        atomic_text(self.out / "validation.csv", csv_text(self.history))
         if self.reporter is not None:
             self.reporter(row)
 
@@ -557,7 +557,7 @@ class TrainingRun:
             "next_eval": self.next_eval,
             "episodes": model.get_env().get_attr("episodes"),
         }
-        atomic_write(ck / "state.json", lambda p: p.write_text(json.dumps(state)))
+        atomic_text(ck / "state.json", json.dumps(state))
 
     # ----------------------------------------------------------------------------- the run
     def train(self, resume: bool = False) -> dict[str, Any]:
@@ -623,7 +623,7 @@ class TrainingRun:
                 f"{self.effort_ref:.4g} (the baseline's): nothing to select"
             )
         manifest = self.manifest(model.num_timesteps)
-        atomic_write(out / MANIFEST, lambda p: p.write_text(yaml.safe_dump(manifest, sort_keys=False)))
+        atomic_text(out / MANIFEST, yaml.safe_dump(manifest, sort_keys=False))
         plot_curve(self.history, self.baseline, self.main, out / "training_curve.png", self.name)
         return manifest
 

@@ -30,6 +30,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from .config import ConfigError
+from .records import atomic_text
 from .units import deg_to_rad
 
 # What each experiment can and cannot identify (the docs and the report print this table).
@@ -142,7 +143,7 @@ def write_log(path: str | Path, log: Log) -> None:
     w.writerow(cols)
     for row in zip(*cols.values(), strict=True):
         w.writerow([repr(int(x)) if isinstance(x, np.integer) else repr(float(x)) for x in row])
-    Path(path).write_text(buf.getvalue())
+    atomic_text(Path(path), buf.getvalue())
 
 
 # ------------------------------------------------------------------------------------------- fits

@@ -35,7 +35,7 @@ from .identification import (
     write_log,
 )
 from .plants import plant_config, plant_spec
-from .records import atomic_text, command_line, package_version
+from .records import atomic_text, atomic_write, command_line, package_version
 
 TABLE = "iurian2005_m220_friction_table.csv"
 RECOMMENDED_MIN_SPEED_COUNTS_S = 7000.0  # above the low-speed hump of rows 1-4 (stick-slip, Stribeck)
@@ -103,7 +103,7 @@ def _plot_static(fid: FrictionId, unit: str, path: Path, truth: dict[str, float]
     ax.axhline(0, color="0.8", lw=0.5)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    atomic_write(path, lambda p: fig.savefig(p, dpi=90, format="png"))
     plt.close(fig)
 
 
@@ -380,7 +380,7 @@ def _plot_document(t: dict[str, np.ndarray], values: dict[str, float], path: Pat
     ax.set(xlabel="velocity (counts/s)", ylabel="control (V)", title="seed 000 §2.3")
     ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    atomic_write(path, lambda p: fig.savefig(p, dpi=90, format="png"))
     plt.close(fig)
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from frictiongym.envs.config import ConfigError, plant_names
 from frictiongym.envs.identify_workflow import recovery, run
+from frictiongym.envs.records import atomic_text
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -51,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.kind == "recovery":
             table, _ = recovery(plant_names(), args.draws)
             args.out.mkdir(parents=True, exist_ok=True)
-            (args.out / "recovery.md").write_text(table)
+            atomic_text(args.out / "recovery.md", table)
             print(table)
             return 0
         if args.document and args.kind == "lugre":

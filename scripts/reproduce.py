@@ -19,6 +19,7 @@ matplotlib.use("Agg")
 from tqdm import tqdm
 
 from frictiongym.agents import reproduce
+from frictiongym.envs.records import atomic_text
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -30,8 +31,8 @@ def main(argv: list[str] | None = None) -> int:
     chosen = [s for s in reproduce.sections() if not args.sections or s.name in args.sections]
     results = [reproduce.run_section(s, args.out) for s in tqdm(chosen, desc="reproducing", unit="section")]
     rows = [r for res in results for r in res.rows]
-    (args.out / "report.json").write_text(json.dumps(rows, indent=1))
-    (args.out / "report.md").write_text(reproduce.markdown(results))
+    atomic_text(args.out / "report.json", json.dumps(rows, indent=1))
+    atomic_text(args.out / "report.md", reproduce.markdown(results))
     failed = [r["id"] for r in rows if not r["pass"]]
     print(f"{len(rows) - len(failed)}/{len(rows)} rows pass; report in {args.out / 'report.md'}")
     for r in failed:

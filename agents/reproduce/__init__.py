@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from frictiongym.envs.config import Node, configs_dir, load_yaml
+from frictiongym.envs.records import atomic_write
 
 
 def row(
@@ -109,12 +110,12 @@ def all_rows(names: list[str] | None = None) -> list[dict]:
     return [r for s in sections() if names is None or s.name in names for r in run_section(s).rows]
 
 
-def save_figure(fig, out: Path, fname: str) -> str:
-    """Write a figure as PNG, close it, return its file name."""
+def save_figure(fig, out: Path, fname: str, dpi: int = 110) -> str:
+    """Write a figure as PNG (atomically), close it, return its file name."""
     import matplotlib.pyplot as plt
 
     fig.tight_layout()
-    fig.savefig(out / fname, dpi=110)
+    atomic_write(out / fname, lambda p: fig.savefig(p, dpi=dpi, format="png"))
     plt.close(fig)
     return fname
 

@@ -88,10 +88,7 @@ def plant_figures(_: None, out: Path) -> list[str]:
     )
     a1.legend()
     a2.set(xlabel="f (Hz)", ylabel="phase (deg)")
-    fig.tight_layout()
-    fig.savefig(out / "flexible_bode.png", dpi=120)
-    plt.close(fig)
-    return ["flexible_bode.png"]
+    return [save_figure(fig, out, "flexible_bode.png", dpi=120)]
 
 
 PLANT = Section("flexible", "wallenborg1987", lambda: None, plant_rows, plant_figures)
