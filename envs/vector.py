@@ -77,8 +77,8 @@ class ServoVectorEnv(VectorEnv):
         self._started = False
 
     def ground_truth(self) -> dict[str, np.ndarray]:
-        """True states of every env now, one row each: what a single env puts in its info (qpos rad,
-        qvel rad/s, bristle rad, friction_torque N·m). A method, not info, so that step() stays cheap."""
+        """True states of every env now, one row each: what a single env's ground_truth() returns (qpos
+        rad, qvel rad/s, bristle rad, friction_torque N·m). A method, not info, so that step() stays cheap."""
         return self.core.ground_truth(slice(None))
 
     def params(self) -> list[dict[str, Any]]:

@@ -17,14 +17,9 @@ from tqdm import tqdm
 from frictiongym.envs.config import plant_names
 from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.plants.params import rejected_draws
-from frictiongym.envs.plants.spec import PlantSpec
 from frictiongym.envs.scenario import load_scenario, scenario_names
 
 CHUNK = 5000  # seeds per job
-
-
-def _chunk(spec: PlantSpec, start: int, stop: int) -> list[tuple[int, str]]:
-    return rejected_draws(spec, range(start, stop))
 
 
 def main() -> None:
@@ -39,7 +34,7 @@ def main() -> None:
     starts = range(0, args.seeds, CHUNK)
     with ProcessPoolExecutor(args.workers, mp_context=get_context("spawn")) as pool:
         futures = {
-            label: [pool.submit(_chunk, spec, a, min(a + CHUNK, args.seeds)) for a in starts]
+            label: [pool.submit(rejected_draws, spec, range(a, min(a + CHUNK, args.seeds))) for a in starts]
             for label, spec in specs.items()
         }
         bar = tqdm(total=len(specs) * len(starts), unit="chunk", desc="drawing")
