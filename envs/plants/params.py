@@ -4,7 +4,7 @@ an already compiled MjModel (or per simulation into a mujoco.batch.Batch) withou
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, replace
 from itertools import product
 from typing import Any
@@ -315,7 +315,7 @@ def check_randomization(spec: PlantSpec) -> None:
             )
 
 
-def rejected_draws(spec: PlantSpec, seeds: range) -> list[tuple[int, str]]:
+def rejected_draws(spec: PlantSpec, seeds: Iterable[int]) -> list[tuple[int, str]]:
     """The seeds whose drawn parameters fail validate() (what reset would refuse), with the reason.
     check_randomization makes this empty for any spec that loads; scripts/check_draws.py counts it over
     many seeds as an empirical check of that guarantee."""
