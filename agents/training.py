@@ -144,7 +144,7 @@ def load_config(path: str | Path, scenario: str | None = None) -> list[RunConfig
     name = top["name"]
     if not isinstance(name, str) or not name.replace("-", "").replace("_", "").isalnum():
         raise top.error("name", f"expected a name of letters, digits, '-' and '_', got {name!r}")
-    top.get("defaults")
+    top.get("defaults")  # read through scenario_settings; marks the key as known for top.done()
     scenarios = top.section("scenarios")
     keys = [k for k in list(scenarios.keys()) if scenarios[k] is not None]  # null: an entry left out
     if not keys:
