@@ -113,7 +113,7 @@ def run_episode(
         controller.name,
         episode.scenario,
         episode.seed,
-        info["episode_metrics"],
+        env.core.metrics(0),  # every metric (info leaves the undefined ones out; results write n/a)
         total,
         bool(info.get("diverged", False)),
         log,

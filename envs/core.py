@@ -51,11 +51,15 @@ def mujoco_diverged(warning_counts: np.ndarray) -> bool:
 
 
 class SingleBackend:
-    """One MjData. Its arrays are read and written through views made once (the MjData is never
-    replaced, and each attribute access would build a new view)."""
+    """One MjData (a new one, or `data`, e.g. restored from a snapshot). Its arrays are read and written
+    through views made once (the MjData is never replaced, and each attribute access would build a new
+    view)."""
 
-    def __init__(self, model: mujoco.MjModel, scenario: Scenario, idx: ModelIndex):
-        self.model, self.data, self.sc, self.idx, self.n = model, mujoco.MjData(model), scenario, idx, 1
+    def __init__(
+        self, model: mujoco.MjModel, scenario: Scenario, idx: ModelIndex, data: mujoco.MjData | None = None
+    ):
+        self.model, self.sc, self.idx, self.n = model, scenario, idx, 1
+        self.data = mujoco.MjData(model) if data is None else data
         d = self.data
         self.qpos, self.qvel, self.ctrl, self.act = d.qpos, d.qvel, d.ctrl, d.act
         self.force = d.actuator_force
@@ -131,6 +135,26 @@ class BatchBackend:
         return self.qpos, self.qvel, self.act, self.force
 
 
+# What an episode in progress holds beyond its MjModel (episode parameters are written into it) and MjData.
+EPISODE_STATE = (
+    "k",
+    "prev_action",
+    "hist",
+    "log_y",
+    "log_v",
+    "log_u",
+    "params",
+    "noise_scale",
+    "sigma2",
+    "delay_steps",
+    "jitter_steps",
+    "noise_rng",
+    "jitter_rng",
+    "diverged",
+    "ended",
+)
+
+
 class ServoCore:
     """Episodes of one scenario on n simulations (see module docstring)."""
 
@@ -190,7 +214,7 @@ class ServoCore:
         )
         self._ref = self.ref.tolist()
         self._fric = [(int(a), int(d)) for a, d in zip(self.fric_act, self.fric_dofs, strict=True)]
-        self._log_y0, self._log_v0, self._log_u0 = self.log_y[0], self.log_v[0], self.log_u[0]  # row views
+        self._row_views()
         self._t = self.t.tolist()
         self._disturbance = self.disturbance.tolist() if self.disturbance is not None else None
         self._substeps = spec.substeps
@@ -208,6 +232,27 @@ class ServoCore:
         self.layout = sc.layout
         self.obs_dim = self.layout.size
         self.diverged_reward = diverged_reward(sc.reward_weights)
+
+    def _row_views(self) -> None:
+        self._log_y0, self._log_v0, self._log_u0 = self.log_y[0], self.log_v[0], self.log_u[0]
+
+    # ------------------------------------------------------------------ snapshots (copy and pickle)
+    def snapshot(self) -> dict:
+        """The episode in progress of a single backend: its MjModel and MjData (MuJoCo pickles both, the
+        actuator delay's history included) and the EPISODE_STATE arrays and random streams. The caller
+        copies it (pickle or deepcopy); restore() then continues the episode bit for bit."""
+        if not isinstance(self.backend, SingleBackend):
+            raise TypeError("only a single-simulation core (ServoEnv) can be copied")
+        episode = {k: getattr(self, k) for k in EPISODE_STATE}
+        return {"model": self.model, "data": self.backend.data, **episode}
+
+    def restore(self, snap: dict) -> None:
+        """Continue the episode of a snapshot taken from a core of the same scenario (and own it)."""
+        self.model = snap["model"]
+        self.backend = SingleBackend(self.model, self.sc, self.idx, snap["data"])
+        for k in EPISODE_STATE:
+            setattr(self, k, snap[k])
+        self._row_views()
 
     # ------------------------------------------------------------------ reset
     def draw(

@@ -98,6 +98,13 @@ def effort(u: np.ndarray) -> dict[str, float]:
     }
 
 
+def defined_metrics(metrics: dict[str, float]) -> dict[str, float]:
+    """The metrics that are defined for an episode (not nan: e.g. settling_time when the output never
+    settles, reversal_peak_error without a reversal), as the envs put them in info: a dict with nan
+    never compares equal to itself. Results files keep every metric and write the undefined ones as n/a."""
+    return {k: v for k, v in metrics.items() if v == v}
+
+
 def episode_metrics(
     t: np.ndarray,
     r: np.ndarray,

@@ -276,7 +276,13 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
     if c.get("control_period_s") is not None:  # else the plant preset's own period
         period = c.positive("control_period_s", 1.0)
         plant_ov["sampling"] = {**plant_ov.get("sampling", {}), "control_period_s": period}
-    spec = plant_spec(c.choice("plant", plant_names()), plant_ov, c.choice("friction_model", FRICTION_MODELS))
+    randomize = c.boolean("randomize")
+    spec = plant_spec(
+        c.choice("plant", plant_names()),
+        plant_ov,
+        c.choice("friction_model", FRICTION_MODELS),
+        check_ranges=randomize,  # ranges that are never drawn from are not checked
+    )
     period = spec.control_period
     task = c.section("task")
     names = [x.name for x in spec.sensors]
@@ -297,7 +303,7 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
         name=path.stem,
         spec=spec,
         episode_steps=steps,
-        randomize=c.boolean("randomize"),
+        randomize=randomize,
         tracked_sensor=tracked,
         output_scale=task.positive("output_scale", 1e6),
         action_scale=action_scale,

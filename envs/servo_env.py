@@ -7,6 +7,7 @@ sampling instant.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -14,10 +15,12 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 from gymnasium import spaces
+from gymnasium.envs.registration import EnvSpec
 from gymnasium.utils import EzPickle
 
 from .config import boolean
 from .core import ServoCore, check_action, check_options
+from .metrics import defined_metrics
 from .sampler import check_seed
 from .scenario import Scenario, load_scenario
 from .step import OBS_CLIP, observation_layout
@@ -41,6 +44,20 @@ OBSERVATION_DOC = f"""
     friction_torque) comes from ``env.unwrapped.ground_truth()``, or in ``info`` with
     ``ground_truth_in_info=True`` (it costs ≈ 1.5 µs per step, ~5 % of the M220's step).
 """
+
+
+def check_plant(scenario: Scenario, plant: str | None) -> None:
+    """Refuse a scenario of another plant than the env's (plant None: any)."""
+    if plant is not None and scenario.spec.name != plant:
+        raise ValueError(f"scenario {scenario.name!r} is for plant {scenario.spec.name!r}, not {plant!r}")
+
+
+def json_safe_spec(spec: EnvSpec | None) -> EnvSpec | None:
+    """The spec gym.make gives an env, with a Path scenario written as its str, so that spec.to_json()
+    and pickling the spec work (the env reads either form alike)."""
+    if spec is None or not isinstance(spec.kwargs.get("scenario"), Path):
+        return spec
+    return dataclasses.replace(spec, kwargs={**spec.kwargs, "scenario": str(spec.kwargs["scenario"])})
 
 
 def decode_observation(scenario: Scenario, obs: np.ndarray) -> dict[str, Any]:
@@ -92,11 +109,7 @@ class ServoEnv(gym.Env, EzPickle):
             control_period_s=control_period_s,
             episode_s=episode_s,
         )
-        if self.plant is not None and self.scenario.spec.name != self.plant:
-            raise ValueError(
-                f"scenario {self.scenario.name!r} is for plant {self.scenario.spec.name!r}, "
-                f"not {self.plant!r}"
-            )
+        check_plant(self.scenario, self.plant)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode {render_mode!r} not in {self.metadata['render_modes']}")
         self.render_mode = render_mode
@@ -108,6 +121,16 @@ class ServoEnv(gym.Env, EzPickle):
         self._renderer: mujoco.Renderer | None = None
         self._ids = np.array([0])
         self._started = False
+
+    @property
+    def spec(self) -> EnvSpec | None:  # type: ignore[override]  (gym.Env's is a plain attribute)
+        return self._spec
+
+    @spec.setter
+    def spec(self, value: EnvSpec | None) -> None:
+        self._spec = json_safe_spec(value)
+
+    _spec: EnvSpec | None = None
 
     # --------------------------------------------------------------- Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
@@ -139,8 +162,29 @@ class ServoEnv(gym.Env, EzPickle):
         if self.ground_truth_in_info:
             info.update(self.core.ground_truth(0))
         if term or trunc:
-            info["episode_metrics"] = self.core.metrics(0)
+            info["episode_metrics"] = defined_metrics(self.core.metrics(0))
         return obs, reward, term, trunc, info
+
+    # --------------------------------------------------------------- copy and pickle
+    def __getstate__(self) -> dict[str, Any]:
+        """The constructor's arguments (EzPickle), the env's random generator and spec, and the episode in
+        progress, so that a copy (copy.deepcopy, pickle) steps on from the same state, bit for bit."""
+        state = EzPickle.__getstate__(self)
+        state.update(np_random=self._np_random, np_random_seed=self._np_random_seed, spec=self._spec)
+        if self._started:
+            state["episode"] = self.core.snapshot()
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        EzPickle.__setstate__(self, state)  # a new env from the constructor's arguments
+        self._np_random, self._np_random_seed, self._spec = (
+            state["np_random"],
+            state["np_random_seed"],
+            state["spec"],
+        )
+        if "episode" in state:
+            self.core.restore(state["episode"])
+            self._started = True
 
     def render(self) -> np.ndarray | None:
         """An RGB frame of the disks (headless: set MUJOCO_GL=egl or osmesa)."""

@@ -8,15 +8,19 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import mujoco
 import numpy as np
 from gymnasium import spaces
+from gymnasium.envs.registration import EnvSpec
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .config import integer
+from .config import boolean, integer
 from .core import ServoCore, check_action, check_options
+from .metrics import defined_metrics
 from .sampler import check_seed
 from .scenario import load_scenario
+from .servo_env import FlexibleServoEnv, KangRobotEnv, M220Env, ServoEnv, check_plant, json_safe_spec
 from .step import OBS_CLIP
 
 
@@ -33,11 +37,6 @@ def _seeds(seed: int | Sequence[int] | None, n: int, rng: np.random.Generator) -
     return [check_seed(s, f"seed[{i}]") for i, s in enumerate(seed)]
 
 
-def _seed_array(seeds: list[int]) -> np.ndarray:
-    """The seeds for info: uint64 when they fit, else Python ints (numpy's seeds have no upper bound)."""
-    return np.array(seeds, dtype=np.uint64 if max(seeds) < 2**64 else object)
-
-
 class ServoVectorEnv(VectorEnv):
     """num_envs episodes of one scenario stepped together on a thread pool (nthread 0: all CPUs).
 
@@ -45,9 +44,16 @@ class ServoVectorEnv(VectorEnv):
     next step() call (AutoresetMode.NEXT_STEP), with the next seed drawn from its own generator, seeded
     by its reset seed exactly as a single env's np_random: env i then runs the same episode sequence as a
     single env reset with seed s + i and then reset without a seed after each episode.
+
+    It takes what gym.make_vec passes to a vector entry point: the single env's keywords (randomize,
+    control_period_s, episode_s, overrides, render_mode, ground_truth_in_info) and max_episode_steps,
+    which truncates as Gymnasium's TimeLimit does. Observations, rewards, flags and infos equal those of
+    a SyncVectorEnv over gym.make with the same arguments, bit for bit: infos follow its convention (a
+    value array and a `_key` mask per key, nested for dicts), an autoreset step carries the new
+    episode's reset info, and the last step of an episode its episode_metrics.
     """
 
-    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP}  # noqa: RUF012 (Gymnasium's convention)
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": ["rgb_array"]}  # noqa: RUF012
 
     def __init__(
         self,
@@ -59,12 +65,24 @@ class ServoVectorEnv(VectorEnv):
         control_period_s: float | None = None,
         episode_s: float | None = None,
         overrides: dict | None = None,
+        render_mode: str | None = None,
+        max_episode_steps: int | None = None,
+        ground_truth_in_info: bool = False,
+        plant: str | None = None,
     ):
         integer(num_envs, "num_envs", 1)
         integer(nthread, "nthread", 0)  # 0: all CPUs
+        self.max_episode_steps = (
+            None if max_episode_steps is None else integer(max_episode_steps, "max_episode_steps", 1)
+        )
+        self.ground_truth_in_info = boolean(ground_truth_in_info, "ground_truth_in_info")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode {render_mode!r} not in {self.metadata['render_modes']}")
+        self.render_mode = render_mode
         self.scenario = load_scenario(
             scenario, overrides, randomize=randomize, control_period_s=control_period_s, episode_s=episode_s
         )
+        check_plant(self.scenario, plant)
         self.num_envs = int(num_envs)
         self.core = ServoCore(self.scenario, n=num_envs, nthread=nthread, batch=True)
         self.single_observation_space = spaces.Box(-OBS_CLIP, OBS_CLIP, (self.core.obs_dim,), np.float32)
@@ -73,8 +91,20 @@ class ServoVectorEnv(VectorEnv):
         self.action_space = batch_space(self.single_action_space, num_envs)
         self._rngs = [np.random.default_rng(i) for i in range(num_envs)]
         self._done = np.zeros(num_envs, dtype=bool)
+        self._elapsed = np.zeros(num_envs, dtype=int)  # steps since each env's reset (max_episode_steps)
         self._all = np.arange(num_envs)
         self._started = False
+        self._renderer: tuple[mujoco.Renderer, mujoco.MjData] | None = None
+
+    @property
+    def spec(self) -> EnvSpec | None:  # type: ignore[override]
+        return self._spec
+
+    @spec.setter
+    def spec(self, value: EnvSpec | None) -> None:
+        self._spec = json_safe_spec(value)
+
+    _spec: EnvSpec | None = None
 
     def ground_truth(self) -> dict[str, np.ndarray]:
         """True states of every env now, one row each: what a single env's ground_truth() returns (qpos
@@ -91,6 +121,23 @@ class ServoVectorEnv(VectorEnv):
             "it is used, from its arguments (ServoVectorEnv(scenario, num_envs, ...))."
         )
 
+    def _reset_info(self, i: int, seed: int, pinned: dict) -> dict[str, Any]:
+        """What a single env's reset returns as info for env i's new episode."""
+        info = {"params": self.core.params_dict(i), "pinned": pinned, "episode_seed": seed}
+        if self.ground_truth_in_info:
+            info.update(self.core.ground_truth(i))
+        return info
+
+    def _reset_envs(self, ids: np.ndarray, seeds: list[int], pinned: dict, info: dict) -> np.ndarray:
+        """Start new episodes in envs ids; their reset infos are added to info (Gymnasium's convention)."""
+        obs = self.core.reset(ids, seeds, pinned)
+        if "episode_seed" not in info:  # Python ints above int64 (numpy seeds are unbounded) as objects
+            info["episode_seed"] = np.zeros(self.num_envs, dtype=int if max(seeds) < 2**63 else object)
+        for i, s in zip(ids, seeds, strict=True):
+            self._add_info(info, self._reset_info(int(i), s, pinned), int(i))
+        self._elapsed[ids] = 0
+        return obs
+
     def reset(self, *, seed: int | Sequence[int] | None = None, options: dict | None = None):
         """Reset every env (see the class docstring for seeds); options={"params": {...}} pins parameters
         for these episodes. A failed reset (bad seed or options) leaves the env as it was."""
@@ -98,11 +145,12 @@ class ServoVectorEnv(VectorEnv):
         given = None if seed is None else _seeds(seed, self.num_envs, self.np_random)  # checked first
         super().reset(seed=int(seed) if isinstance(seed, int | np.integer) else None)
         seeds = given if given is not None else _seeds(None, self.num_envs, self.np_random)
-        obs = self.core.reset(self._all, seeds, pinned)
-        self._rngs = [np.random.default_rng(s) for s in seeds]
+        info: dict[str, Any] = {}
+        obs = self._reset_envs(self._all, seeds, pinned, info)
+        self._rngs = [np.random.default_rng(s) for s in seeds]  # as a single env's np_random
         self._done[:] = False
         self._started = True
-        return obs, {"episode_seed": _seed_array(seeds), "pinned": pinned}
+        return obs, info
 
     def _next_seeds(self, ids: np.ndarray) -> list[int]:
         return [int(self._rngs[i].integers(2**63)) for i in ids]
@@ -119,30 +167,77 @@ class ServoVectorEnv(VectorEnv):
         if len(active):
             o, r, te, tr, inf = self.core.step(actions[active], active)
             obs[active], reward[active], term[active], trunc[active] = o, r, te, tr
+            if self.ground_truth_in_info:
+                inf.update({k: v[active] for k, v in self.ground_truth().items()})
+            mask = ~self._done
             for key, value in inf.items():  # Gymnasium's vector info convention: value array + mask
-                full = np.zeros(n, dtype=np.asarray(value).dtype)
+                value = np.asarray(value)
+                full = np.zeros((n, *value.shape[1:]), dtype=value.dtype)
                 full[active] = value
-                info[key], info[f"_{key}"] = full, ~self._done
+                info[key], info[f"_{key}"] = full, mask
+            self._elapsed[active] += 1
+            if self.max_episode_steps is not None:  # as TimeLimit: truncated at the limit
+                trunc[active] |= self._elapsed[active] >= self.max_episode_steps
         if len(was_done):  # autoreset: the action is ignored, the observation is the new episode's first
-            obs[was_done] = self.core.reset(was_done, self._next_seeds(was_done))
+            obs[was_done] = self._reset_envs(was_done, self._next_seeds(was_done), {}, info)
+        for i in np.flatnonzero(self.core.ended & (term | trunc)):  # the env's own end, not a TimeLimit's
+            self._add_info(info, {"episode_metrics": defined_metrics(self.core.metrics(i))}, int(i))
         self._done = term | trunc
-        ended = np.flatnonzero(self._done)
-        if len(ended):
-            info["episode_metrics"] = np.array(
-                [self.core.metrics(i) if self._done[i] else None for i in range(self.num_envs)], dtype=object
-            )
-            info["_episode_metrics"] = self._done.copy()
         return obs, reward.astype(np.float64), term, trunc, info
+
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """One RGB frame per env, as SyncVectorEnv's render gives (headless: MUJOCO_GL=egl or osmesa)."""
+        if self.render_mode != "rgb_array":
+            return None
+        if self._renderer is None:
+            self._renderer = (mujoco.Renderer(self.core.model, 480, 640), mujoco.MjData(self.core.model))
+        renderer, data = self._renderer
+        qpos, qvel, *_ = self.core.backend.state()
+        frames = []
+        for i in range(self.num_envs):
+            data.qpos[:], data.qvel[:] = qpos[i], qvel[i]
+            mujoco.mj_forward(self.core.model, data)
+            renderer.update_scene(data, camera="top")
+            frames.append(renderer.render())
+        return tuple(frames)
+
+    def close_extras(self, **kwargs: Any) -> None:
+        if self._renderer is not None:
+            self._renderer[0].close()
+            self._renderer = None
+
+
+class SubEnv:
+    """Env i of a ServoVectorEnv as a sub-env of SB3's VecEnv methods see it: its own ground truth and
+    episode parameters, the single env's spaces, the vector env's other attributes (scenario, core, ...),
+    and attributes set on it alone (VecEnv.set_attr with indices)."""
+
+    def __init__(self, venv: ServoVectorEnv, index: int):
+        self.venv, self.index = venv, index
+        self.observation_space, self.action_space = venv.single_observation_space, venv.single_action_space
+
+    def ground_truth(self) -> dict[str, np.ndarray]:
+        """What ServoEnv.ground_truth() returns, for this env."""
+        return self.venv.core.ground_truth(self.index)
+
+    def params(self) -> dict[str, Any]:
+        """This env's episode parameters (a single env's reset info["params"])."""
+        return self.venv.core.params_dict(self.index)
+
+    def __getattr__(self, name: str) -> Any:  # only for names not set on this sub-env
+        return getattr(self.venv, name)
 
 
 def make_sb3_vec_env(scenario: str | Path, num_envs: int, nthread: int = 0, seed: int = 0, **kwargs: Any):
     """A stable-baselines3 VecEnv over the batched core (same-step autoreset; terminal_observation and
-    TimeLimit.truncated in infos as SB3 expects)."""
+    TimeLimit.truncated in infos as SB3 expects). get_attr, set_attr and env_method act per sub-env
+    (SubEnv), with SB3's indices (None: all, an int, or a list)."""
     from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
     class SB3ServoVecEnv(VecEnv):
         def __init__(self) -> None:
             self.venv = ServoVectorEnv(scenario, num_envs, nthread, **kwargs)
+            self.envs = [SubEnv(self.venv, i) for i in range(num_envs)]  # before VecEnv asks them
             super().__init__(num_envs, self.venv.single_observation_space, self.venv.single_action_space)
             self._seed = seed
             self._actions = np.zeros(num_envs)
@@ -166,31 +261,27 @@ def make_sb3_vec_env(scenario: str | Path, num_envs: int, nthread: int = 0, seed
                 infos[i] = {
                     "terminal_observation": obs[i].copy(),
                     "TimeLimit.truncated": bool(trunc[i] and not term[i]),
-                    "episode_metrics": core.metrics(i),
+                    "episode_metrics": defined_metrics(core.metrics(i)),
                 }
             if len(ids):
                 obs[ids] = core.reset(ids, self.venv._next_seeds(ids))
             return obs, reward.astype(np.float32), done, infos
 
         def close(self) -> None:
-            return None
+            self.venv.close()
 
         def get_attr(self, attr_name: str, indices=None) -> list:
-            return [getattr(self.venv, attr_name)] * len(self._indices(indices))
+            return [getattr(self.envs[i], attr_name) for i in self._get_indices(indices)]
 
         def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
-            setattr(self.venv, attr_name, value)
+            for i in self._get_indices(indices):
+                setattr(self.envs[i], attr_name, value)
 
         def env_method(self, method_name: str, *args, indices=None, **kw) -> list:
-            return [getattr(self.venv, method_name)(*args, **kw)] * len(self._indices(indices))
+            return [getattr(self.envs[i], method_name)(*args, **kw) for i in self._get_indices(indices)]
 
         def env_is_wrapped(self, wrapper_class, indices=None) -> list[bool]:
-            return [False] * len(self._indices(indices))
-
-        def _indices(self, indices) -> list[int]:
-            if indices is None:
-                return list(range(num_envs))
-            return [indices] if isinstance(indices, int) else list(indices)
+            return [False] * len(list(self._get_indices(indices)))
 
         def seed(self, seed: int | None = None) -> list[int | None]:
             self._seed = 0 if seed is None else seed
@@ -199,15 +290,18 @@ def make_sb3_vec_env(scenario: str | Path, num_envs: int, nthread: int = 0, seed
     return SB3ServoVecEnv()
 
 
-def _vector_entry(default_scenario: str):
-    """A gym.make_vec entry point (vectorization_mode="vector_entry_point") over mujoco.batch."""
+def _vector_entry(env_class: type[ServoEnv]):
+    """The gym.make_vec entry point (vectorization_mode="vector_entry_point", its default here) of a
+    plant's env: its default scenario, and a scenario of another plant refused as gym.make refuses it."""
 
     def make(num_envs: int = 1, scenario: str | Path | None = None, **kwargs: Any) -> ServoVectorEnv:
-        return ServoVectorEnv(scenario or default_scenario, num_envs, **kwargs)
+        return ServoVectorEnv(
+            scenario or env_class.default_scenario, num_envs, plant=env_class.plant, **kwargs
+        )
 
     return make
 
 
-m220_vector = _vector_entry("m220_regulation")
-flexible_servo_vector = _vector_entry("flexible_speed_step")
-kang_robot_vector = _vector_entry("kang_regulation")
+m220_vector = _vector_entry(M220Env)
+flexible_servo_vector = _vector_entry(FlexibleServoEnv)
+kang_robot_vector = _vector_entry(KangRobotEnv)

@@ -34,9 +34,16 @@ def plant_config(name: str | Path, overrides: dict | None = None) -> dict[str, A
     return merge(load_yaml(name), overrides, source=preset_path(name, "plants").name)
 
 
-def plant_spec(name: str | Path, overrides: dict | None = None, friction_model: str = "lugre") -> PlantSpec:
+def plant_spec(
+    name: str | Path,
+    overrides: dict | None = None,
+    friction_model: str = "lugre",
+    check_ranges: bool = True,
+) -> PlantSpec:
     """Build the SI PlantSpec of preset `name` with YAML-level overrides; validates every value, every
-    key (unknown and missing keys are errors naming the file) and every corner of the randomization."""
+    key (unknown and missing keys are errors naming the file) and, with check_ranges (the plant will be
+    randomised), every corner of the randomization ranges. Without it, values drawn from the ranges
+    are never used, and any value pinned at a reset is checked there."""
     from .params import check_randomization
 
     if friction_model not in FRICTION_MODELS:
@@ -71,7 +78,8 @@ def plant_spec(name: str | Path, overrides: dict | None = None, friction_model: 
                 )
     if friction_model != "lugre":
         spec = replace(spec, joints=tuple(_strip(j, friction_model) for j in spec.joints))
-    check_randomization(spec)
+    if check_ranges:
+        check_randomization(spec)
     return spec
 
 
