@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import data_equivalence
 
-import frictiongym.envs  # noqa: F401  (registers the ids)
+import frictiongym.envs  # registers the ids
 from frictiongym.envs import ENV_IDS
 from frictiongym.envs.config import ConfigError, configs_dir
 from frictiongym.envs.scenario import load_scenario
@@ -37,7 +37,7 @@ def _rollout(venv, steps: int, seed: int = 7) -> list:
     "kwargs",
     [
         {"scenario": "kang_regulation", "episode_s": 0.1, "randomize": True},  # 5 steps: several autoresets
-        {"scenario": "kang_ramp", "max_episode_steps": 4, "randomize": True},  # a TimeLimit below the scenario
+        {"scenario": "kang_ramp", "max_episode_steps": 4, "randomize": True},  # a limit below the scenario
         {"scenario": "m220_reversal_tracking_hard", "episode_s": 0.03, "ground_truth_in_info": True},
     ],
 )
