@@ -256,28 +256,20 @@ def scenario_overrides(cfg: RunConfig) -> dict[str, Any]:
 
 
 # ------------------------------------------------------------------------------------------- env
-class PolicyEnv(gym.Wrapper):
-    """The training env of one run: the scenario's env, in residual mode with the base controller in the
-    loop (u = clip(u_base + α·a)), its observation extended as the model sees it (policy_observation),
-    and its episodes on a fixed seed schedule: first_seed, first_seed + stride, ... (seeds passed to
-    reset are ignored, so a VecEnv's seeding cannot move training onto a suite's seeds)."""
+class ResidualEnv(gym.Wrapper):
+    """A scenario's env as a learned compensator sees it: in residual mode the base controller runs in the
+    loop (u = clip(u_base + α·a)) and the observation is extended with its action (policy_observation);
+    without a base, the env as it is. Used by training (PolicyEnv) and by rl-zoo (agents/zoo.py)."""
 
-    def __init__(self, env: ServoEnv, base: Controller | None, alpha: float, first_seed: int, stride: int):
+    def __init__(self, env: gym.Env, base: Controller | None, alpha: float):
         super().__init__(env)
         self.base, self.alpha = base, alpha
-        self.first_seed, self.stride, self.episodes = first_seed, stride, 0
         n = env.observation_space.shape[0] + int(base is not None)
         self.observation_space = spaces.Box(-np.inf, np.inf, (n,), np.float32)
         self.knowledge = knowledge_defaults()
 
-    def set_episodes(self, n: int) -> None:
-        """Continue the seed schedule after n episodes (--resume)."""
-        self.episodes = n
-
     def reset(self, *, seed: int | None = None, options: dict | None = None):
-        episode_seed = self.first_seed + self.episodes * self.stride
-        self.episodes += 1
-        obs, info = self.env.reset(seed=episode_seed, options=options)
+        obs, info = self.env.reset(seed=seed, options=options)
         return self._observe(obs, reset=True), info
 
     def _observe(self, obs: np.ndarray, reset: bool = False) -> np.ndarray:
@@ -294,6 +286,25 @@ class PolicyEnv(gym.Wrapper):
         u = residual_action(self.u_base, action, self.alpha) if self.base is not None else action
         obs, reward, term, trunc, info = self.env.step(np.asarray(u, dtype=np.float32).reshape(1))
         return self._observe(obs), reward, term, trunc, info
+
+
+class PolicyEnv(ResidualEnv):
+    """The training env of one run: ResidualEnv with its episodes on a fixed seed schedule: first_seed,
+    first_seed + stride, ... (seeds passed to reset are ignored, so a VecEnv's seeding cannot move
+    training onto a suite's seeds)."""
+
+    def __init__(self, env: ServoEnv, base: Controller | None, alpha: float, first_seed: int, stride: int):
+        super().__init__(env, base, alpha)
+        self.first_seed, self.stride, self.episodes = first_seed, stride, 0
+
+    def set_episodes(self, n: int) -> None:
+        """Continue the seed schedule after n episodes (--resume)."""
+        self.episodes = n
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        episode_seed = self.first_seed + self.episodes * self.stride
+        self.episodes += 1
+        return super().reset(seed=episode_seed, options=options)
 
 
 def make_env(cfg: RunConfig, seed: int, rank: int, monitor_dir: str | None = None) -> gym.Env:

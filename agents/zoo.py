@@ -1,0 +1,161 @@
+"""rl-baselines3-zoo support: what a zoo hyper-parameter file (configs/zoo/*.yml) names, so that
+
+    python -m rl_zoo3.train --algo sac --env frictiongym/KangRobot-v0 --gym-packages frictiongym.envs \\
+        --conf-file configs/zoo/sac.yml
+
+trains the project's residual agents; a trained zoo agent as a controller of the suite (zoo_policy), so
+that it is judged on the validation suite by the leaderboard's own loop (validate); and the front end
+for the zoo's commands that have no --gym-packages option (scripts/zoo.py record_video).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import runpy
+import sys
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import yaml
+from gymnasium.envs import registration
+
+from frictiongym.envs.config import ConfigError
+
+from .learned import PolicyInputs, SB3Policy, algorithm_class
+from .registry import make
+from .training import ResidualEnv, best_classical, classical_on, evaluate_controller, validation_episodes
+
+ZOO_COMMANDS = ("train", "enjoy", "record_video")
+
+
+class Residual(ResidualEnv):
+    """Zoo `env_wrapper`: residual mode over the built-in controller `base` with authority `alpha` (a
+    fraction of the full command). A base that brings hardware of its own (plant_overrides, e.g. RDFC's
+    analog rate feedback) is refused: the zoo builds the env with gym.make, before any wrapper."""
+
+    def __init__(self, env: gym.Env, base: str, alpha: float):
+        controller = make(base)
+        scenario = env.unwrapped.scenario
+        if (reason := controller.why_not(scenario)) is not None:
+            raise ConfigError("env_wrapper.base", f"{base} does not apply to {scenario.name}: {reason}")
+        if controller.plant_overrides(scenario):
+            raise ConfigError(
+                "env_wrapper.base",
+                f"{base} brings hardware ({controller.plant_overrides(scenario)}) that an env made by "
+                "gym.make lacks; choose a base without it, or train with scripts/train.py",
+            )
+        super().__init__(env, controller, alpha)
+
+
+def _callback_base() -> type:
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    return BaseCallback
+
+
+class ZeroResidualStart(_callback_base()):
+    """Zoo `callback`: at the start of training the policy's mean action is exactly 0 and its std `std`
+    (action units), so the residual starts as its base controller, as scripts/train.py's runs start."""
+
+    def __init__(self, std: float = 0.05, verbose: int = 0):
+        super().__init__(verbose)
+        self.std = std
+
+    def _on_training_start(self) -> None:
+        from .training import zero_output
+
+        zero_output(self.model, self.std)
+
+    def _on_step(self) -> bool:
+        return True
+
+
+def zoo_run(folder: str | Path, algo: str, env_id: str, exp_id: int = 0) -> Path:
+    """A zoo log folder's run: <folder>/<algo>/<env>_<exp_id> (exp_id 0: the latest)."""
+    root = Path(folder) / algo.lower()
+    prefix = env_id.replace("/", "-") if "/" in env_id else env_id
+    runs = sorted(root.glob(f"{prefix}_*"), key=lambda p: int(p.name.rsplit("_", 1)[1]))
+    if exp_id:
+        runs = [r for r in runs if r.name == f"{prefix}_{exp_id}"]
+    if not runs:
+        raise FileNotFoundError(f"no zoo run of {env_id} ({algo}) under {root}")
+    return runs[-1]
+
+
+def _params_dir(run: Path) -> Path:
+    return next(p for p in run.iterdir() if p.is_dir() and (p / "config.yml").exists())
+
+
+def zoo_config(run: str | Path) -> dict[str, Any]:
+    """The hyper-parameters a zoo run saved (its config.yml: an OrderedDict the zoo writes as a Python
+    object, hence the unsafe loader, on a file the zoo itself wrote)."""
+    return dict(yaml.load((_params_dir(Path(run)) / "config.yml").read_text(), Loader=yaml.UnsafeLoader))
+
+
+def zoo_env_kwargs(run: str | Path) -> dict[str, Any]:
+    """The env keyword arguments a zoo run trained with (from its hyper-parameter file)."""
+    return dict(zoo_config(run).get("env_kwargs") or {})
+
+
+def zoo_policy(run: str | Path, algo: str, name: str | None = None) -> SB3Policy:
+    """A trained zoo agent as a controller of the suite: its final model, its frozen VecNormalize and,
+    from its saved config, the residual base and authority (Residual wrapper)."""
+    run = Path(run)
+    params = _params_dir(run)
+    config = zoo_config(run)
+    wrappers = config.get("env_wrapper") or []
+    wrappers = [wrappers] if not isinstance(wrappers, list) else wrappers
+    name_of_wrapper = f"{__name__}.{Residual.__name__}"
+    residual = next(
+        (w[name_of_wrapper] for w in wrappers if isinstance(w, dict) and name_of_wrapper in w), None
+    )
+    model_zip = next(run.glob("*.zip"))
+    policy = SB3Policy.load(
+        model_zip,
+        algorithm_class(algo.upper()).__name__,
+        name=name or f"zoo-{algo}-{run.name}",
+        normalizer=params / "vecnormalize.pkl" if (params / "vecnormalize.pkl").exists() else None,
+        inputs=PolicyInputs(base_action=residual is not None),
+        base=make(residual["base"]) if residual else None,
+        alpha=residual["alpha"] if residual else 1.0,
+    )
+    return policy
+
+
+def validate(run: str | Path, algo: str, env_id: str, episodes: int = 10) -> dict[str, Any]:
+    """A zoo agent against the best classical baseline on the first `episodes` validation-suite episodes
+    of the scenario it trained on (the selection the project's own training uses; never the test suite)."""
+    from .evaluate import EnvCache
+
+    entry = gym.spec(env_id).entry_point
+    scenario = zoo_env_kwargs(run).get("scenario") or registration.load_env_creator(entry).default_scenario
+    eps = validation_episodes(scenario)[:episodes]
+    envs = EnvCache()
+    baseline = best_classical(scenario, classical_on(eps, envs))
+    agent = evaluate_controller(zoo_policy(run, algo), eps, envs)
+    return {"scenario": scenario, "baseline": baseline, "agent": agent}
+
+
+def run_zoo_command(command: str, argv: list[str]) -> None:
+    """Run rl_zoo3.<command> (train, enjoy, record_video) with this package's envs registered. enjoy and
+    record_video read a run's env arguments from its args.yml, where the zoo stores only those given on
+    its command line: without --env-kwargs, those of the run's hyper-parameter file are passed on, so
+    the agent is shown on the scenario it trained on."""
+    if command not in ZOO_COMMANDS:
+        raise SystemExit(f"unknown zoo command {command!r}; one of {list(ZOO_COMMANDS)}")
+    import frictiongym.envs  # noqa: F401  (registers the ids the zoo's --env names)
+
+    if command != "train" and "--env-kwargs" not in argv:
+        p = argparse.ArgumentParser(add_help=False)
+        p.add_argument("--algo", default="ppo")
+        p.add_argument("--env", default="")
+        p.add_argument("-f", "--folder", default="rl-trained-agents")
+        p.add_argument("--exp-id", type=int, default=0)
+        known, _ = p.parse_known_args(argv)
+        with contextlib.suppress(FileNotFoundError, StopIteration):
+            kwargs = zoo_env_kwargs(zoo_run(known.folder, known.algo, known.env, known.exp_id))
+            argv = [*argv, "--env-kwargs", *(f"{k}:{v!r}" for k, v in kwargs.items())]
+    sys.argv = [f"rl_zoo3.{command}", *argv]
+    runpy.run_module(f"rl_zoo3.{command}", run_name="__main__", alter_sys=True)

@@ -1,0 +1,48 @@
+"""rl-baselines3-zoo with the frictiongym envs registered, and zoo agents judged on the validation suite.
+
+    python scripts/zoo.py train --algo sac --env frictiongym/KangRobot-v0 --conf-file configs/zoo/sac.yml
+    python scripts/zoo.py record_video --algo sac --env frictiongym/KangRobot-v0 -f logs -n 500
+    python scripts/zoo.py validate --algo sac --env frictiongym/KangRobot-v0 -f logs
+
+train, enjoy and record_video are the zoo's own commands and take its options (record_video has no
+--gym-packages, hence this front end; videos need the video extra and MUJOCO_GL=egl). validate runs
+the latest zoo run of an id on the first validation-suite episodes of its scenario against the best
+classical baseline, through the leaderboard's evaluation loop.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from frictiongym.agents.zoo import ZOO_COMMANDS, run_zoo_command, validate, zoo_run
+from frictiongym.envs.scenario import load_scenario
+
+
+def main(argv: list[str] | None = None) -> None:
+    argv = sys.argv[1:] if argv is None else argv
+    if argv and argv[0] in ZOO_COMMANDS:
+        run_zoo_command(argv[0], argv[1:])
+        return
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = p.add_subparsers(dest="command", required=True)
+    for name in ZOO_COMMANDS:
+        sub.add_parser(name, help=f"rl_zoo3.{name} with the frictiongym ids registered (zoo options)")
+    v = sub.add_parser("validate", help="a zoo run against the best classical baseline (validation suite)")
+    v.add_argument("--algo", required=True)
+    v.add_argument("--env", required=True, help="a frictiongym id, e.g. frictiongym/KangRobot-v0")
+    v.add_argument("-f", "--folder", default="logs", help="the zoo's log folder")
+    v.add_argument("--exp-id", type=int, default=0, help="0: the latest run")
+    v.add_argument("--episodes", type=int, default=10, help="first validation-suite episodes")
+    args = p.parse_args(argv)
+    run = zoo_run(args.folder, args.algo, args.env, args.exp_id)
+    out = validate(run, args.algo, args.env, args.episodes)
+    b, a = out["baseline"], out["agent"]
+    main = load_scenario(out["scenario"]).main_metric
+    print(f"{run}: {out['scenario']}, first {args.episodes} validation episodes, {main} (lower is better)")
+    print(f"  best classical {b.name}: {main} {b.main:.4g}, effort_rms {b.effort_rms:.4g}")
+    print(f"  zoo agent: {main} {a[main]:.4g}, effort_rms {a['effort_rms']:.4g}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,8 @@
+"""Test markers: `slow` marks a test that trains, runs a suite or starts a service; the inner loop is
+`python -m pytest -m "not slow"`, CI runs everything."""
+
+
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers", "slow: trains, runs a suite or starts a service (deselect: -m 'not slow')"
+    )
