@@ -17,8 +17,12 @@ import csv
 import io
 import json
 import math
+import multiprocessing
 import os
+import signal
 import sys
+import threading
+import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass
@@ -38,6 +42,7 @@ from . import registry
 from .evaluate import EnvCache, run_episode
 from .stats import normalized_score
 
+PARENT_POLL_S = 0.5  # how often a pool worker checks that its parent is alive (s)
 CHUNK = 4  # episodes per task: small, so a killed run loses little and the pool stays balanced
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "MUJOCO_NUM_THREADS")
 KEY = ("controller", "scenario", "seed", "randomize", "params")
@@ -105,10 +110,58 @@ _CONTROLLERS: dict[str, Any] = {}
 _ENVS = EnvCache()
 
 
-def _init_worker() -> None:
-    """One thread per worker for BLAS, torch and MuJoCo (the pool is the parallelism)."""
+class Interrupted(KeyboardInterrupt):
+    """A stop asked by a signal other than Ctrl-C (SIGTERM), handled as Ctrl-C is."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _watch_parent(parent: int) -> None:
+    """Exit this worker once its parent is gone (killed with SIGKILL, it cannot stop its pool): a
+    worker blocked on its task queue would otherwise live on as an orphan, holding the parent's pipes."""
+    while os.getppid() == parent:
+        time.sleep(PARENT_POLL_S)
+    os._exit(1)
+
+
+def init_worker(parent: int | None = None) -> None:
+    """A pool worker: one thread for BLAS, torch and MuJoCo (the pool is the parallelism); Ctrl-C left
+    to the parent, which stops the pool; exits when `parent` (a pid) dies."""
     if "torch" in sys.modules:
         sys.modules["torch"].set_num_threads(1)
+    if parent is not None:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
+
+
+def stop_workers() -> None:
+    """Terminate this process's pool workers at once (an interrupted run keeps what it has written)."""
+    children = multiprocessing.active_children()
+    for p in children:
+        p.terminate()
+    for p in children:
+        p.join(timeout=5)
+
+
+def run_interruptibly(fn: Callable[[], int], resume: str) -> int:
+    """fn()'s exit code, with Ctrl-C (SIGINT) and SIGTERM stopping it within moments: every row
+    finished before the signal stays where fn wrote it, the message says how to resume (`resume`), and
+    the code is 128 + the signal's number, as a shell reports a process the signal ended."""
+
+    def term(signum: int, _frame: Any) -> None:
+        raise Interrupted(signum)
+
+    old = signal.signal(signal.SIGTERM, term)
+    try:
+        return fn()
+    except KeyboardInterrupt as e:
+        signum = e.signum if isinstance(e, Interrupted) else signal.SIGINT
+        print(f"\ninterrupted ({signal.Signals(signum).name}): {resume}", file=sys.stderr)
+        return 128 + signum
+    finally:
+        signal.signal(signal.SIGTERM, old)
 
 
 def run_chunk(jobs: list[Job], prov: dict[str, str], models: tuple[str, ...] = ()) -> list[dict[str, Any]]:
@@ -186,7 +239,7 @@ def _ray_init(workers: int, address: str | None) -> None:
 
 
 def _run_chunk_ray(jobs: list[Job], prov: dict[str, str], models: tuple[str, ...]) -> list[dict[str, Any]]:
-    _init_worker()
+    init_worker()
     return run_chunk(jobs, prov, models)
 
 
@@ -209,12 +262,18 @@ def run_jobs(
         _ray_init(workers, ray.address)
         task = ray_.remote(num_cpus=1, max_retries=ray.max_retries)(_run_chunk_ray)
         pending = {task.remote(chunk, prov, models): len(chunk) for chunk in todo}
-        while pending:
-            done, _ = ray_.wait(list(pending), num_returns=1)
-            for ref in done:
-                on_rows(ray_.get(ref))
-                bar.update(pending.pop(ref))
-        bar.close()
+        try:
+            while pending:
+                done, _ = ray_.wait(list(pending), num_returns=1)
+                for ref in done:
+                    on_rows(ray_.get(ref))
+                    bar.update(pending.pop(ref))
+        except BaseException:  # stop the tasks still running or queued
+            for ref in pending:
+                ray_.cancel(ref, force=True)
+            raise
+        finally:
+            bar.close()
         return
     if workers <= 1 or len(todo) <= 1:
         for chunk in todo:
@@ -224,15 +283,22 @@ def run_jobs(
         return
     saved = {v: os.environ.get(v) for v in THREAD_VARS}
     os.environ.update(dict.fromkeys(THREAD_VARS, "1"))  # inherited by the spawned workers
+    pool = ProcessPoolExecutor(
+        workers, mp_context=get_context("spawn"), initializer=init_worker, initargs=(os.getpid(),)
+    )
     try:
-        with ProcessPoolExecutor(workers, mp_context=get_context("spawn"), initializer=_init_worker) as pool:
-            pending = {pool.submit(run_chunk, chunk, prov, models): len(chunk) for chunk in todo}
-            while pending:
-                done, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for f in done:
-                    on_rows(f.result())
-                    bar.update(pending.pop(f))
+        pending = {pool.submit(run_chunk, chunk, prov, models): len(chunk) for chunk in todo}
+        while pending:
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for f in done:
+                on_rows(f.result())
+                bar.update(pending.pop(f))
+    except BaseException:  # Ctrl-C, SIGTERM, a failed job: stop now, not after every pending chunk
+        pool.shutdown(wait=False, cancel_futures=True)
+        stop_workers()
+        raise
     finally:
+        pool.shutdown()
         for v, old in saved.items():
             if old is None:
                 os.environ.pop(v, None)

@@ -45,7 +45,7 @@ from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.suites import load_suite
 
 from .base import Controller, EpisodeContext
-from .engine import provenance
+from .engine import init_worker, provenance
 from .evaluate import EnvCache, controller_overrides, run_episode
 from .learned import (
     LearnedNeeds,
@@ -745,5 +745,9 @@ def train_many(
         return [train_one(j) for j in jobs]
     import multiprocessing as mp
 
-    with mp.get_context("spawn").Pool(workers, maxtasksperchild=1) as pool:
+    # Ctrl-C is the parent's (workers ignore it; leaving the block terminates them); a killed parent's
+    # workers exit by themselves
+    with mp.get_context("spawn").Pool(
+        workers, initializer=init_worker, initargs=(os.getpid(),), maxtasksperchild=1
+    ) as pool:
         return pool.map(train_one, jobs, chunksize=1)

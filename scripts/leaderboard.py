@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from frictiongym.agents import leaderboard
-from frictiongym.agents.engine import RunMismatch, add_backend_arguments, backend_of
+from frictiongym.agents.engine import RunMismatch, add_backend_arguments, backend_of, run_interruptibly
 from frictiongym.agents.registry import committed_models
 from frictiongym.envs.scenario import scenario_names
 from frictiongym.envs.suites import Episode, suite_names
@@ -70,13 +70,22 @@ def main(argv: list[str] | None = None) -> int:
     )
     models = args.models if args.models is not None else committed_models("headline")
     t0 = time.perf_counter()
-    try:
+
+    def run() -> int:
         leaderboard.run(
             suite, args.controllers, args.out, workers=args.workers, episodes=episodes, models=models, ray=ray
+        )
+        return 0
+
+    try:
+        code = run_interruptibly(
+            run, f"the finished rows are in {args.out / 'episodes.csv'}; rerun the same command to resume"
         )
     except (RunMismatch, ValueError) as e:  # other options into --out; unknown controllers or bad models
         print(f"error: {e}", file=sys.stderr)
         return 2
+    if code:
+        return code
     print((args.out / "leaderboard.md").read_text().split("\n![")[0])
     print(
         f"wrote {args.out / 'leaderboard.md'}, leaderboard.csv, episodes.csv and plots "

@@ -21,7 +21,7 @@ import sys
 from pathlib import Path
 
 from frictiongym.agents import sim2real
-from frictiongym.agents.engine import RunMismatch, add_backend_arguments, backend_of
+from frictiongym.agents.engine import RunMismatch, add_backend_arguments, backend_of, run_interruptibly
 from frictiongym.agents.registry import committed_models
 from frictiongym.envs.scenario import scenario_names
 
@@ -47,7 +47,8 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--seeds >= 1, --points >= 2, --joint >= 0, --workers >= 1")
     default = [*committed_models("sim2real"), *committed_models("headline")]  # those that apply are run
     models = tuple(str(m) for m in (args.models if args.models is not None else default))
-    try:
+
+    def run() -> int:
         _, text = sim2real.run(
             args.scenario,
             args.controllers,
@@ -60,11 +61,16 @@ def main(argv: list[str] | None = None) -> int:
             model_error_draws=args.model_error,
             ray=ray,
         )
+        print(text)
+        return 0
+
+    try:
+        return run_interruptibly(
+            run, f"the finished rows are in {args.out}/episodes.csv; rerun the same command to resume"
+        )
     except (RunMismatch, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    print(text)
-    return 0
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from frictiongym.agents.engine import run_interruptibly
 from frictiongym.agents.training import config_names, export_model, load_config, train_many
 from frictiongym.envs.config import ConfigError
 
@@ -43,17 +44,32 @@ def main(argv: list[str] | None = None) -> int:
     if args.workers < 1 or any(s < 0 for s in args.seed):
         ap.error("--workers must be >= 1 and seeds >= 0")
     if args.sweep:
-        return sweep(args)
+        return run_interruptibly(
+            lambda: sweep(args), f"finished trials are in {args.out}; rerun the same command to run the rest"
+        )
     if args.export:
         for run in args.export:
             print(export_model(run, args.out))
         return 0
+    manifests: list = []
+
+    def train() -> int:
+        manifests.extend(
+            train_many(
+                load_config(args.config, args.scenario), args.seed, args.out, args.resume, args.workers
+            )
+        )
+        return 0
+
     try:
-        cfgs = load_config(args.config, args.scenario)
-        manifests = train_many(cfgs, args.seed, args.out, args.resume, args.workers)
+        code = run_interruptibly(
+            train, f"the runs' checkpoints are in {args.out}; add --resume to the same command to continue"
+        )
     except (ConfigError, FileExistsError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    if code:
+        return code
     for m in manifests:
         v = m["validation"]
         b = v["best_classical"]

@@ -1,0 +1,89 @@
+"""Real signals on a real pool: Ctrl-C (SIGINT to the process group, as a terminal sends it) and SIGTERM
+stop a leaderboard within seconds, keep the finished rows, say how to resume and exit 128 + signal; a
+SIGKILLed parent leaves no process behind. Resuming an interrupted run gives the clean run's file."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+psutil = pytest.importorskip("psutil")
+pytestmark = pytest.mark.slow
+
+SCRIPT = str(Path(__file__).parents[1] / "scripts" / "leaderboard.py")
+# 60 episodes of 10,000 periods on 2 workers: about half a minute of work, far more than a stop may take
+ARGS = ["--scenarios", "flexible_speed_step_fast", "--seeds", "1-20", "--randomize"]
+ARGS += ["--controllers", "PID", "SF", "--models", "--workers", "2"]
+STOP_S = 8.0  # an interrupted run ends within this (the remaining work takes several times longer)
+
+
+def _rows(out: Path) -> int:
+    f = out / "episodes.csv"
+    return f.read_text().count("\n") - 1 if f.exists() else -1
+
+
+def _start(out: Path) -> tuple[subprocess.Popen, list]:
+    """The leaderboard in a session of its own, once its pool runs and a first chunk of rows is on disk;
+    with the processes it started (pool workers, resource tracker)."""
+    proc = subprocess.Popen(
+        [sys.executable, SCRIPT, *ARGS, "--out", str(out)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 180
+    while _rows(out) < 1 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert _rows(out) >= 1, "no row was written"
+    return proc, psutil.Process(proc.pid).children(recursive=True)
+
+
+def _gone(children: list, within_s: float) -> list:
+    """The processes of `children` still alive after within_s seconds."""
+    _, alive = psutil.wait_procs(children, timeout=within_s)
+    return [p for p in alive if p.status() != psutil.STATUS_ZOMBIE]
+
+
+@pytest.mark.parametrize(
+    ("signum", "to_group"), [(signal.SIGINT, True), (signal.SIGTERM, False)], ids=["ctrl-c", "sigterm"]
+)
+def test_a_signal_stops_the_run_within_seconds_and_keeps_its_rows(tmp_path, signum, to_group):
+    proc, children = _start(tmp_path / "run")
+    assert len(children) >= 2  # the two pool workers (and the resource tracker)
+    before, t0 = _rows(tmp_path / "run"), time.monotonic()
+    (os.killpg if to_group else os.kill)(proc.pid, signum)
+    _, err = proc.communicate(timeout=60)
+    took = time.monotonic() - t0
+    assert proc.returncode == 128 + signum, err
+    assert took < STOP_S, f"took {took:.1f} s to stop"
+    assert "rerun the same command to resume" in err and "episodes.csv" in err
+    assert before <= _rows(tmp_path / "run") < 60  # every finished row kept, the run not finished
+    assert _gone(children, 5.0) == []
+
+
+def test_a_killed_parent_leaves_no_process_behind(tmp_path):
+    proc, children = _start(tmp_path / "run")
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert _gone(children, 10.0) == []
+
+
+def test_an_interrupted_run_resumes_to_the_clean_runs_file(tmp_path):
+    proc, _ = _start(tmp_path / "stopped")
+    os.killpg(proc.pid, signal.SIGINT)
+    proc.communicate(timeout=60)
+    for out in (tmp_path / "stopped", tmp_path / "clean"):
+        run = subprocess.run(
+            [sys.executable, SCRIPT, *ARGS, "--out", str(out)], capture_output=True, timeout=600
+        )
+        assert run.returncode == 0, run.stderr
+    assert (tmp_path / "stopped" / "episodes.csv").read_bytes() == (
+        tmp_path / "clean" / "episodes.csv"
+    ).read_bytes()
