@@ -21,7 +21,26 @@ import yaml
 
 
 class _Loader(yaml.SafeLoader):
-    """SafeLoader that also reads 1e5 / 1.0e5 as floats (YAML 1.2; PyYAML's 1.1 rules need 1.0e+5)."""
+    """SafeLoader that also reads 1e5 / 1.0e5 as floats (YAML 1.2; PyYAML's 1.1 rules need 1.0e+5) and
+    refuses a key given twice in one mapping (PyYAML keeps the last one silently)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":  # `<<:` merge keys may repeat inherited keys
+                continue
+            key = self.construct_object(key_node, deep=True)
+            line = key_node.start_mark.line + 1
+            if key in seen:
+                raise _DuplicateKey(str(key), line, seen[key])
+            seen[key] = line
+        return super().construct_mapping(node, deep)
+
+
+class _DuplicateKey(Exception):
+    def __init__(self, key: str, line: int, first: int):
+        super().__init__(key, line, first)
+        self.key, self.line, self.first = key, line, first
 
 
 _Loader.add_implicit_resolver(
@@ -70,10 +89,25 @@ def preset_path(name_or_path: str | Path, kind: str) -> Path:
 
 
 def load_yaml(name_or_path: str | Path, kind: str = "plants") -> dict[str, Any]:
-    """Load a YAML mapping by name (configs/<kind>/<name>.yaml) or by path."""
+    """Load a YAML mapping by name (configs/<kind>/<name>.yaml) or by path. Every problem with the file
+    (not UTF-8 text, a syntax error, a tab, a tag such as !!python/object, a key given twice, not a
+    mapping) is a ConfigError naming the file, the line and, where there is one, the key."""
     path = preset_path(name_or_path, kind)
-    with open(path) as f:
-        data = yaml.load(f, Loader=_Loader)
+    try:
+        text = path.read_text(encoding="utf-8")
+        data = yaml.load(text, Loader=_Loader)
+    except UnicodeDecodeError as e:
+        why = f"not UTF-8 text (byte {e.start}): is it a YAML file?"
+        raise ConfigError("(file)", why, str(path)) from None
+    except _DuplicateKey as e:
+        raise ConfigError(
+            e.key, f"line {e.line}: key given twice (first on line {e.first}); keep one", str(path)
+        ) from None
+    except yaml.YAMLError as e:
+        mark = getattr(e, "problem_mark", None) or getattr(e, "context_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark is not None else "(no position)"
+        what = " ".join(str(x) for x in (getattr(e, "context", None), getattr(e, "problem", None)) if x)
+        raise ConfigError("(yaml)", f"{where}: {what or e}", str(path)) from None
     if not isinstance(data, dict):
         raise ConfigError("(file)", "expected a YAML mapping", str(path))
     return data

@@ -282,6 +282,7 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
         plant_ov,
         c.choice("friction_model", FRICTION_MODELS),
         check_ranges=randomize,  # ranges that are never drawn from are not checked
+        prefix="plant_overrides.",
     )
     period = spec.control_period
     task = c.section("task")

@@ -62,8 +62,13 @@ def json_safe_spec(spec: EnvSpec | None) -> EnvSpec | None:
 
 def decode_observation(scenario: Scenario, obs: np.ndarray) -> dict[str, Any]:
     """Physical readings from an observation, by the scenario's layout: sensors (rad or V), reference,
-    preview, held command."""
+    preview, held command. The observation must have the layout's shape and be finite."""
     lay, s = scenario.layout, scenario.output_scale
+    obs = np.asarray(obs)
+    if obs.shape != (lay.size,) or obs.dtype.kind not in "fiu":
+        raise ValueError(f"expected an observation of shape ({lay.size},), got {obs.dtype} {obs.shape}")
+    if not np.isfinite(obs).all():
+        raise ValueError(f"observation must be finite, got {obs}")
     return {
         "sensors": dict(
             zip([x.name for x in scenario.spec.sensors], obs[lay.slice("sensors")] * s, strict=True)
@@ -120,7 +125,7 @@ class ServoEnv(gym.Env, EzPickle):
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self._renderer: mujoco.Renderer | None = None
         self._ids = np.array([0])
-        self._started = False
+        self._started = self._closed = False
 
     @property
     def spec(self) -> EnvSpec | None:  # type: ignore[override]  (gym.Env's is a plain attribute)
@@ -139,8 +144,10 @@ class ServoEnv(gym.Env, EzPickle):
         options={"params": {"friction_scale": 1.3, ...}} pins parameters (randomization keys) for this
         episode; the others are drawn as usual. info["params"] holds the episode's parameters and
         info["pinned"] the pinned values."""
+        if self._closed:
+            raise RuntimeError("reset() after close(): make a new env")
         if seed is not None:
-            check_seed(seed)
+            seed = check_seed(seed)  # any integer type, as the vector env takes it (Gymnasium wants int)
         pinned = check_options(options)
         super().reset(seed=seed)
         episode_seed = seed if seed is not None else int(self.np_random.integers(2**63))
@@ -153,6 +160,8 @@ class ServoEnv(gym.Env, EzPickle):
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         if not self._started:
+            if self._closed:
+                raise RuntimeError("step() after close(): make a new env")
             raise RuntimeError("step() before reset(): call reset() first")
         if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":
             x = float(action[0])  # the common case, without the general checks' cost
@@ -196,9 +205,11 @@ class ServoEnv(gym.Env, EzPickle):
         return self._renderer.render()
 
     def close(self) -> None:
+        """Release the renderer; the env cannot step or reset after it (closing twice is fine)."""
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+        self._started, self._closed = False, True
 
     def ground_truth(self) -> dict[str, np.ndarray]:
         """True states now: joint angles (qpos, rad) and velocities (qvel, rad/s), LuGre bristle deflections
@@ -208,12 +219,13 @@ class ServoEnv(gym.Env, EzPickle):
 
     # --------------------------------------------------------------- helpers for classical controllers
     def command_to_action(self, command: float) -> np.ndarray:
-        """Amplifier command (V or N·m) -> action."""
-        return np.array([command / self.scenario.action_scale], dtype=np.float32)
+        """Amplifier command (V or N·m, a finite real scalar) -> action."""
+        return np.array([check_action(command, 1)[0] / self.scenario.action_scale], dtype=np.float32)
 
     def action_to_command(self, action: np.ndarray | float) -> float:
-        """Action -> amplifier command (V or N·m), after the [-1, 1] clip."""
-        return float(np.clip(np.asarray(action, dtype=float).ravel()[0], -1, 1) * self.scenario.action_scale)
+        """Action (a finite real scalar, or shape (1,)) -> amplifier command (V or N·m), after the
+        [-1, 1] clip."""
+        return float(np.clip(check_action(action, 1)[0], -1, 1) * self.scenario.action_scale)
 
     def decode_observation(self, obs: np.ndarray) -> dict[str, Any]:
         """Physical readings from an observation (see decode_observation)."""

@@ -93,7 +93,7 @@ class ServoVectorEnv(VectorEnv):
         self._done = np.zeros(num_envs, dtype=bool)
         self._elapsed = np.zeros(num_envs, dtype=int)  # steps since each env's reset (max_episode_steps)
         self._all = np.arange(num_envs)
-        self._started = False
+        self._started = False  # VectorEnv.close() sets self.closed
         self._renderer: tuple[mujoco.Renderer, mujoco.MjData] | None = None
 
     @property
@@ -141,6 +141,8 @@ class ServoVectorEnv(VectorEnv):
     def reset(self, *, seed: int | Sequence[int] | None = None, options: dict | None = None):
         """Reset every env (see the class docstring for seeds); options={"params": {...}} pins parameters
         for these episodes. A failed reset (bad seed or options) leaves the env as it was."""
+        if self.closed:
+            raise RuntimeError("reset() after close(): make a new env")
         pinned = check_options(options)
         given = None if seed is None else _seeds(seed, self.num_envs, self.np_random)  # checked first
         super().reset(seed=int(seed) if isinstance(seed, int | np.integer) else None)
@@ -157,6 +159,8 @@ class ServoVectorEnv(VectorEnv):
 
     def step(self, actions: np.ndarray):
         if not self._started:
+            if self.closed:
+                raise RuntimeError("step() after close(): make a new env")
             raise RuntimeError("step() before reset(): call reset() first")
         actions = check_action(actions, self.num_envs)
         n = self.num_envs
@@ -202,9 +206,11 @@ class ServoVectorEnv(VectorEnv):
         return tuple(frames)
 
     def close_extras(self, **kwargs: Any) -> None:
+        """Release the renderer; the env cannot step or reset after close() (VectorEnv.close)."""
         if self._renderer is not None:
             self._renderer[0].close()
             self._renderer = None
+        self._started = False
 
 
 class SubEnv:
@@ -243,7 +249,7 @@ def make_sb3_vec_env(scenario: str | Path, num_envs: int, nthread: int = 0, seed
             self._actions = np.zeros(num_envs)
 
         def reset(self) -> np.ndarray:
-            obs, _ = self.venv.reset(seed=self._seed)
+            obs, _ = self.venv.reset(seed=self._seed)  # after close(): the vector env's error
             return obs
 
         def step_async(self, actions: np.ndarray) -> None:
@@ -251,6 +257,8 @@ def make_sb3_vec_env(scenario: str | Path, num_envs: int, nthread: int = 0, seed
 
         def step_wait(self):
             if not self.venv._started:
+                if self.venv.closed:
+                    raise RuntimeError("step() after close(): make a new env")
                 raise RuntimeError("step() before reset(): call reset() first")
             core = self.venv.core
             obs, reward, term, trunc, _ = core.step(self._actions)

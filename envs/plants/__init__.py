@@ -29,9 +29,21 @@ def plant_module(name: str) -> ModuleType:
     return importlib.import_module(f"{__name__}.{name}")
 
 
-def plant_config(name: str | Path, overrides: dict | None = None) -> dict[str, Any]:
-    """The preset's YAML merged with overrides (keys must exist)."""
-    return merge(load_yaml(name), overrides, source=preset_path(name, "plants").name)
+FIXED_KEYS = ("plant",)  # a preset's keys that overrides cannot change (choose another preset instead)
+
+
+def plant_config(name: str | Path, overrides: dict | None = None, prefix: str = "") -> dict[str, Any]:
+    """The preset's YAML merged with overrides (keys must exist in the preset); `prefix` names where the
+    overrides came from in errors (e.g. "plant_overrides.")."""
+    source = preset_path(name, "plants").name
+    for key in FIXED_KEYS:
+        if isinstance(overrides, dict) and key in overrides:
+            raise ConfigError(
+                f"{prefix}{key}",
+                "the plant is the preset's; choose another plant (or scenario) instead",
+                source,
+            )
+    return merge(load_yaml(name), overrides, prefix=prefix, source=source)
 
 
 def plant_spec(
@@ -39,16 +51,17 @@ def plant_spec(
     overrides: dict | None = None,
     friction_model: str = "lugre",
     check_ranges: bool = True,
+    prefix: str = "",
 ) -> PlantSpec:
     """Build the SI PlantSpec of preset `name` with YAML-level overrides; validates every value, every
     key (unknown and missing keys are errors naming the file) and, with check_ranges (the plant will be
     randomised), every corner of the randomization ranges. Without it, values drawn from the ranges
-    are never used, and any value pinned at a reset is checked there."""
+    are never used, and any value pinned at a reset is checked there. `prefix`: as plant_config's."""
     from .params import check_randomization
 
     if friction_model not in FRICTION_MODELS:
         raise ConfigError("friction_model", f"{friction_model!r} not in {list(FRICTION_MODELS)}")
-    cfg = Node(plant_config(name, overrides), preset_path(name, "plants").name)
+    cfg = Node(plant_config(name, overrides, prefix), preset_path(name, "plants").name)
     module = plant_module(cfg.choice("plant", plant_names()))
     cfg.get("description")
     spec = module.build(cfg, friction_model)

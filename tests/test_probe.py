@@ -1,0 +1,145 @@
+"""The fault and bad-input probe, kept as tests so that its counts stay at zero: every YAML problem is a
+ConfigError naming the file and line, every lifecycle misuse a clear error on every env kind, every
+helper checks its input, and every numeric key of every plant and scenario YAML, set huge or tiny, is
+refused with an error naming the key, file, value and range, or accepted where docs/envs.md says why."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import frictiongym.envs
+from frictiongym.envs.config import ConfigError, load_yaml
+from frictiongym.envs.scenario import load_scenario
+from frictiongym.envs.servo_env import ServoEnv
+from frictiongym.envs.vector import ServoVectorEnv, make_sb3_vec_env
+
+YAML_FAULTS = {
+    "syntax": ("a: [1, 2\n", r"\(yaml\): line 2, column 1: while parsing a flow sequence"),
+    "tab": ("a: 1\n\tb: 2\n", r"\(yaml\): line 2, column 1: .*'\\t'"),
+    "python tag": ('a: !!python/object/apply:os.system ["true"]\n', r"line 1, column 4: .*python/object"),
+    "duplicate key": (
+        "episode_s: 1\nepisode_s: 2\n",
+        r"episode_s: line 2: key given twice \(first on line 1\)",
+    ),
+    "nested duplicate": ("x:\n  y: 1\n  y: 2\n", r"y: line 3: key given twice"),
+    "not a mapping": ("- 1\n- 2\n", r"expected a YAML mapping"),
+}
+
+
+@pytest.mark.parametrize("fault", YAML_FAULTS)
+def test_every_yaml_problem_is_a_config_error_naming_file_and_line(tmp_path, fault):
+    text, pattern = YAML_FAULTS[fault]
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=pattern) as e:
+        load_yaml(path)
+    assert str(path) in str(e.value)
+
+
+def test_a_binary_file_is_a_config_error(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_bytes(bytes(range(256)))
+    with pytest.raises(ConfigError, match="not UTF-8 text"):
+        load_yaml(path)
+
+
+def test_a_scenario_file_with_a_duplicate_key_is_refused(tmp_path):
+    path = tmp_path / "twice.yaml"
+    path.write_text("extends: kang_regulation\nepisode_s: 2.0\nepisode_s: 4.0\n")
+    with pytest.raises(ConfigError, match=r"twice.yaml: episode_s: line 3: key given twice"):
+        load_scenario(path)
+
+
+@pytest.mark.parametrize(
+    ("plant_overrides", "pattern"),
+    [
+        ({"plant": "m220"}, r"plant_overrides.plant: the plant is the preset's"),
+        ({"nosuch": 1}, r"plant_overrides.nosuch: unknown key; allowed: \['actuator'"),
+        ({"friction": {"nosuch": 1}}, r"plant_overrides.friction.nosuch: unknown key; allowed: \['coulomb"),
+    ],
+)
+def test_plant_overrides_errors_point_at_the_override(plant_overrides, pattern):
+    with pytest.raises(ConfigError, match=pattern):
+        load_scenario("kang_regulation", {"plant_overrides": plant_overrides})
+
+
+def _single():
+    env = ServoEnv("kang_regulation")
+    return env, lambda: env.step(np.zeros(1, np.float32))
+
+
+def _vector():
+    env = ServoVectorEnv("kang_regulation", 2, nthread=1)
+    return env, lambda: env.step(np.zeros((2, 1), np.float32))
+
+
+def _sb3():
+    env = make_sb3_vec_env("kang_regulation", 2, nthread=1)
+    return env, lambda: env.step(np.zeros((2, 1), np.float32))
+
+
+def _gym_vector():
+    import gymnasium as gym
+
+    env = gym.make_vec("frictiongym/KangRobot-v0", num_envs=2)
+    return env, lambda: env.step(np.zeros((2, 1), np.float32))
+
+
+KINDS = {"single": _single, "vector": _vector, "sb3": _sb3, "make_vec": _gym_vector}
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_step_before_reset_and_after_close_raise_on_every_env_kind(kind):
+    env, step = KINDS[kind]()
+    with pytest.raises(RuntimeError, match=r"step\(\) before reset\(\)"):
+        step()
+    env.reset() if kind == "sb3" else env.reset(seed=1)
+    step()
+    env.close()
+    env.close()  # twice is fine
+    with pytest.raises(RuntimeError, match=r"step\(\) after close\(\)"):
+        step()
+    if kind != "sb3":
+        with pytest.raises(RuntimeError, match=r"reset\(\) after close\(\)"):
+            env.reset(seed=1)
+
+
+@pytest.mark.parametrize("seed", [3, np.int64(3), np.uint32(3)])
+def test_seeds_are_accepted_alike_by_single_and_vector_envs(seed):
+    single, _ = ServoEnv("kang_regulation", randomize=True).reset(seed=seed)
+    vector, _ = ServoVectorEnv("kang_regulation", 1, nthread=1, randomize=True).reset(seed=seed)
+    assert np.array_equal(single, vector[0])
+
+
+@pytest.mark.parametrize("seed", [-1, 2.0, True, "3", np.float64(3.0)])
+def test_seeds_are_refused_alike_by_single_and_vector_envs(seed):
+    with pytest.raises(ValueError, match="seed"):
+        ServoEnv("kang_regulation").reset(seed=seed)
+    with pytest.raises(ValueError, match="seed"):
+        ServoVectorEnv("kang_regulation", 1, nthread=1).reset(seed=seed)
+
+
+@pytest.mark.parametrize(
+    ("call", "pattern"),
+    [
+        (lambda e: e.decode_observation(np.zeros(2)), r"shape \(3,\)"),
+        (lambda e: e.decode_observation(np.zeros((1, 3))), r"shape \(3,\)"),
+        (lambda e: e.decode_observation(np.array(["a", "b", "c"])), r"shape \(3,\)"),
+        (lambda e: e.decode_observation(np.full(3, np.nan)), "finite"),
+        (lambda e: e.action_to_command(np.nan), "finite"),
+        (lambda e: e.action_to_command([0.1, 0.2]), "one action"),
+        (lambda e: e.command_to_action(np.inf), "finite"),
+        (lambda e: e.command_to_action("1"), "real numbers"),
+    ],
+)
+def test_helpers_check_their_input_shape_and_finiteness(call, pattern):
+    with pytest.raises(ValueError, match=pattern):
+        call(ServoEnv("kang_regulation"))
+
+
+def test_helpers_round_trip_a_valid_command():
+    env = ServoEnv("kang_regulation")
+    u = 0.3 * env.scenario.action_scale
+    assert env.action_to_command(env.command_to_action(u)) == pytest.approx(u, rel=1e-6)
+    assert frictiongym.envs.env_id("kang_robot") == "frictiongym/KangRobot-v0"
