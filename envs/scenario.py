@@ -31,6 +31,12 @@ DEFAULTS = "_defaults"  # configs/scenarios/_defaults.yaml, which every scenario
 MAX_EPISODE_S = 3600.0  # one hour of simulated time
 MAX_EPISODE_STEPS = 1_000_000  # the per-episode logs hold 3 floats per step and simulation
 MAX_REWARD_WEIGHT = 1e6  # keeps every reward, and the diverged-step reward, finite
+# task.output_scale normalises the tracked output (rad or V) in observations and rewards: outside this
+# range the observation leaves its ±1e6 clip for any output the plant can reach, or rounds to 0
+OUTPUT_SCALE_RANGE = (1e-6, 1e6)
+SETTLE_BAND_RANGE = (1e-12, 1e6)  # the settling band (rad or V): from below any encoder's resolution
+MIN_FREQUENCY_HZ = 1e-6  # a period of 11 days: slower is a constant reference (type: constant)
+MIN_ACTION_SCALE_FRACTION = 1e-6  # an action may not scale to less than a millionth of the command limit
 
 
 def scenario_names() -> list[str]:
@@ -153,39 +159,76 @@ class Scenario:
         return "regulation" if self.reference.type == "constant" else "tracking"
 
 
-def _schedule(r: Node) -> tuple[tuple[float, float], ...]:
-    """reference.schedule: a non-empty list of [t_start, value] pairs with increasing start times."""
+@dataclass(frozen=True)
+class Limits:
+    """What a reference (or the load torque) may ask, in its own unit: |value|, |rate| per s, |second
+    derivative| per s², start times up to the episode's end (s), frequencies up to Nyquist (Hz)."""
+
+    value: float
+    rate: float
+    accel: float
+    t_max: float
+    f_max: float
+
+    @classmethod
+    def of_output(cls, spec: PlantSpec, tracked: int, episode: float) -> Limits:
+        """The plant's envelope in the tracked sensor's unit: rad for an encoder, V for a tachometer."""
+        env, period = spec.envelope, spec.control_period
+        if spec.sensors[tracked].kind == "encoder":
+            return cls(env.position_rad, env.speed_rad_s, env.accel_rad_s2, episode, 0.5 / period)
+        gain = spec.sensors[tracked].gain
+        rate = gain * env.accel_rad_s2
+        return cls(gain * env.speed_rad_s, rate, rate / period, episode, 0.5 / period)
+
+    @classmethod
+    def of_load_torque(cls, spec: PlantSpec, episode: float) -> Limits:
+        """A load torque up to 10x the drive's peak torque (N·m): beyond it no compensator can hold."""
+        tau = 10.0 * spec.command_limit * spec.actuator_gain
+        period = spec.control_period
+        return cls(tau, tau / period, tau / period**2, episode, 0.5 / period)
+
+
+def _schedule(r: Node, lim: Limits, rates: bool = False) -> tuple[tuple[float, float], ...]:
+    """reference.schedule: a non-empty list of [t_start, value] pairs with increasing start times
+    within the episode, values (or rates, for ramps) within the limits."""
     sched = r["schedule"]
     if not isinstance(sched, list) or not sched:
         raise r.error("schedule", "expected a non-empty list of [t_start, value] pairs")
+    bound = lim.rate if rates else lim.value
     pairs = []
     for i, p in enumerate(sched):
         f = r.field(f"schedule[{i}]")
         if not isinstance(p, list | tuple) or len(p) != 2:
             raise ConfigError(f, f"expected [t_start, value], got {p!r}", r.source)
-        pairs.append((r.check(number, p[0], f"{f}[0]", 0.0), r.check(number, p[1], f"{f}[1]")))
+        pairs.append(
+            (
+                r.check(number, p[0], f"{f}[0]", 0.0, lim.t_max),
+                r.check(number, p[1], f"{f}[1]", -bound, bound),
+            )
+        )
     if any(b[0] <= a[0] for a, b in itertools.pairwise(pairs)):
         raise r.error("schedule", "start times must increase")
     return tuple(pairs)
 
 
-def _reference(r: Node) -> tuple[Reference, int]:
-    """The reference generator and its preview length (steps)."""
+def _reference(r: Node, lim: Limits) -> tuple[Reference, int]:
+    """The reference generator and its preview length (steps), every parameter within `lim`."""
     kind = r.choice("type", REFERENCE_TYPES)
     preview = r.integer("preview_steps", 0, 1000, default=0)
+    offset = r.number("offset", -lim.value, lim.value, default=0.0) if kind != "constant" else 0.0
     if kind == "constant":
-        return Reference("constant", value=r.number("value", default=0.0)), preview
+        return Reference("constant", value=r.number("value", -lim.value, lim.value, default=0.0)), preview
     if kind == "steps":
-        return Reference("steps", schedule=_schedule(r)), preview
+        return Reference("steps", schedule=_schedule(r, lim)), preview
     if kind == "ramps":
-        return Reference("ramps", schedule=_schedule(r), offset=r.number("offset", default=0.0)), preview
+        return Reference("ramps", schedule=_schedule(r, lim, rates=True), offset=offset), preview
     if kind == "trapezoid":
         ref = Reference(
             "trapezoid",
-            schedule=_schedule(r),
-            offset=r.number("offset", default=0.0),
-            max_velocity=r.positive("max_velocity"),
-            max_acceleration=r.positive("max_acceleration"),
+            schedule=_schedule(r, lim),
+            offset=offset,
+            max_velocity=r.positive("max_velocity", lim.rate),
+            max_acceleration=r.positive("max_acceleration", lim.accel),
         )
         start = ref.offset
         for i, ((ts, target), nxt) in enumerate(itertools.zip_longest(ref.schedule, ref.schedule[1:])):
@@ -196,11 +239,13 @@ def _reference(r: Node) -> tuple[Reference, int]:
         return ref, preview
     ref = Reference(
         kind,
-        amplitude=r.nonneg("amplitude", default=0.0),
-        frequency_hz=r.positive("frequency_hz"),
-        offset=r.number("offset", default=0.0),
-        phase_rad=r.number("phase_rad", default=0.0),
+        amplitude=r.nonneg("amplitude", lim.value, default=0.0),
+        frequency_hz=r.number("frequency_hz", MIN_FREQUENCY_HZ, lim.f_max),  # up to the control's Nyquist
+        offset=offset,
+        phase_rad=r.number("phase_rad", -2 * np.pi, 2 * np.pi, default=0.0),
     )
+    if abs(ref.offset) + ref.amplitude > lim.value:
+        raise r.error("amplitude", f"|offset| + amplitude = {abs(ref.offset) + ref.amplitude} > {lim.value}")
     return ref, preview
 
 
@@ -240,12 +285,14 @@ def scenario_config(name_or_path: str | Path, _chain: tuple[str, ...] = ()) -> d
     return out
 
 
-def _ranges(init: Node, key: str, nv: int) -> np.ndarray:
-    """(nv, 2) [low, high] per joint of initial_state.<key>."""
+def _ranges(init: Node, key: str, nv: int, bound: float) -> np.ndarray:
+    """(nv, 2) [low, high] per joint of initial_state.<key>, within ±bound (the plant's envelope)."""
     value = init[key]
     if not isinstance(value, list) or len(value) != nv:
         raise init.error(key, f"expected {nv} [low, high] pairs (one per joint), got {value!r}")
-    return np.array([init.check(interval, v, f"{init.field(key)}[{i}]") for i, v in enumerate(value)])
+    return np.array(
+        [init.check(interval, v, f"{init.field(key)}[{i}]", -bound, bound) for i, v in enumerate(value)]
+    )
 
 
 def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwargs: Any) -> Scenario:
@@ -289,14 +336,14 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
     names = [x.name for x in spec.sensors]
     tracked = names.index(task.choice("tracked_sensor", names))
     unit_key = "action_scale_nm" if spec.command_unit == "N·m" else "action_scale_v"
-    action_scale = task.number(unit_key, 0.0, spec.command_limit, low_open=True)
+    action_scale = task.number(unit_key, MIN_ACTION_SCALE_FRACTION * spec.command_limit, spec.command_limit)
     episode = c.positive("episode_s", MAX_EPISODE_S)
     steps = round(episode / period)
     if abs(steps * period - episode) > 1e-9 * episode:
         raise c.error("episode_s", f"{episode} must be a whole number of control periods ({period})")
     if steps > MAX_EPISODE_STEPS:
         raise c.error("episode_s", f"{steps} control periods > {MAX_EPISODE_STEPS}")
-    reference, preview = _reference(c.section("reference"))
+    reference, preview = _reference(c.section("reference"), Limits.of_output(spec, tracked, episode))
     init = c.section("initial_state")
     n_init = 1 if spec.belts else len(spec.joints)
     obs, rw = c.section("observation"), c.section("reward")
@@ -306,13 +353,13 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
         episode_steps=steps,
         randomize=randomize,
         tracked_sensor=tracked,
-        output_scale=task.positive("output_scale", 1e6),
+        output_scale=task.number("output_scale", *OUTPUT_SCALE_RANGE),
         action_scale=action_scale,
-        settle_band=task.positive("settle_band", 1e6),
+        settle_band=task.number("settle_band", *SETTLE_BAND_RANGE),
         reference=reference,
         preview_steps=preview,
-        qpos_range=_ranges(init, "qpos", n_init),
-        qvel_range=_ranges(init, "qvel", n_init),
+        qpos_range=_ranges(init, "qpos", n_init, spec.envelope.position_rad),
+        qvel_range=_ranges(init, "qvel", n_init, spec.envelope.speed_rad_s),
         random_sign=init.boolean("random_sign"),
         history=obs.integer("history", 0, 1000),
         privileged=obs.boolean("privileged"),
@@ -321,7 +368,8 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
     if c.get("disturbance") is not None:
         if spec.disturbance_joint is None:
             raise c.error("disturbance", f"plant {spec.name} has no disturbance motor")
-        scenario = replace(scenario, disturbance=_reference(c.section("disturbance"))[0])
+        load = Limits.of_load_torque(spec, episode)
+        scenario = replace(scenario, disturbance=_reference(c.section("disturbance"), load)[0])
     b = c.section("benchmark")
     main = b.choice("main_metric", METRIC_NAMES)
     secondary = b["secondary_metrics"]

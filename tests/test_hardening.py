@@ -63,8 +63,11 @@ def test_bad_randomization_ranges_rejected_at_load_naming_the_field(key, rng):
 
 
 def test_huge_state_ends_the_episode_as_diverged():
-    env = ServoEnv("kang_regulation", overrides={"initial_state": {"qpos": [[2e10, 2e10]]}})
+    with pytest.raises(ConfigError, match=r"initial_state.qpos\[0\]\[0\]: 20000000000.0 is outside"):
+        ServoEnv("kang_regulation", overrides={"initial_state": {"qpos": [[2e10, 2e10]]}})  # the envelope
+    env = ServoEnv("kang_regulation")
     env.reset(seed=0)
+    env.core.backend.qpos[:] = 2e10  # a state no scenario may start from, e.g. after a numerical blow-up
     _, reward, term, _, info = env.step(np.zeros(1, np.float32))
     assert term and info["diverged"] and np.isfinite(reward)
     assert reward < -(env.scenario.reward_weights["tracking"] * 1e6)  # below any step that did not diverge
@@ -243,8 +246,9 @@ def test_scenarios_extend_the_defaults_and_each_other():
 
 def test_vector_env_reports_divergence_and_writes_no_mujoco_log(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # MuJoCo would write MUJOCO_LOG.TXT here
-    venv = ServoVectorEnv("kang_regulation", 2, overrides={"initial_state": {"qpos": [[2e10, 2e10]]}})
+    venv = ServoVectorEnv("kang_regulation", 2)
     venv.reset(seed=0)
+    venv.core.backend.qpos[:] = 2e10  # a blown-up state (no scenario may start from it)
     _, reward, term, _, info = venv.step(np.zeros(2))
     assert term.all() and info["diverged"].all() and np.isfinite(reward).all()
     assert not (tmp_path / "MUJOCO_LOG.TXT").exists()

@@ -143,3 +143,130 @@ def test_helpers_round_trip_a_valid_command():
     u = 0.3 * env.scenario.action_scale
     assert env.action_to_command(env.command_to_action(u)) == pytest.approx(u, rel=1e-6)
     assert frictiongym.envs.env_id("kang_robot") == "frictiongym/KangRobot-v0"
+
+
+# ------------------------------------------------------------------ every numeric key, huge and tiny
+HUGE, TINY = (1e30, -1e30), 1e-30
+DERIVED = ("friction[", "schedule[")  # checks on what the key feeds: the friction model, a move's timing
+PLANT_SCENARIO = {
+    "kang_robot": "kang_regulation",
+    "m220": "m220_regulation",
+    "flexible_servo": "flexible_speed_step",
+}
+
+
+def _numeric_leaves(data: dict, path: tuple = ()):
+    """(path, value) of every number in a YAML mapping; list elements by index."""
+    for key, value in data.items():
+        here = (*path, key)
+        if isinstance(value, dict):
+            yield from _numeric_leaves(value, here)
+        elif isinstance(value, list):
+            for i, x in enumerate(value):
+                if isinstance(x, list):
+                    yield from ((((*here, i, j)), y) for j, y in enumerate(x) if _is_number(y))
+                elif _is_number(x):
+                    yield (*here, i), x
+        elif _is_number(value):
+            yield here, value
+
+
+def _is_number(x) -> bool:
+    return isinstance(x, int | float) and not isinstance(x, bool)
+
+
+def _override(data: dict, path: tuple, value: float) -> dict:
+    """Overrides setting one leaf (a list is replaced whole, with the one element changed)."""
+    import copy
+
+    cut = next((i for i, k in enumerate(path) if isinstance(k, int)), len(path))
+    if cut == len(path):
+        out = value
+    else:
+        out = node = copy.deepcopy(data)
+        for k in path[:cut]:
+            out = out[k]
+        whole, node = out, out
+        for k in path[cut:-1]:
+            node = node[k]
+        node[path[-1]] = value
+        out = whole
+    for k in reversed(path[:cut]):
+        out = {k: out}
+    return out
+
+
+def _cases():
+    from frictiongym.envs.plants import plant_names
+    from frictiongym.envs.scenario import scenario_config, scenario_names
+
+    for plant in plant_names():
+        data = load_yaml(plant)
+        for path, _ in _numeric_leaves(data):
+            yield (
+                f"{plant}.yaml",
+                PLANT_SCENARIO[plant],
+                path,
+                lambda v, d=data, p=path: {"plant_overrides": _override(d, p, v)},
+            )
+    for name in scenario_names():
+        data = scenario_config(name)
+        data.pop("plant_overrides", None)
+        for path, _ in _numeric_leaves(data):
+            yield name, name, path, lambda v, d=data, p=path: _override(d, p, v)
+
+
+def _starts_at_zero(err: ConfigError | None) -> bool:
+    """Whether a range error (the huge value's) reports a range whose lower end is 0 or below."""
+    import re
+
+    m = re.search(r"allowed range [\[(](\S+), ", str(err))
+    return m is not None and float(m.group(1)) <= 0.0
+
+
+def _outcome(scenario: str, overrides: dict) -> ConfigError | None:
+    try:
+        load_scenario(scenario, overrides, randomize=True)
+    except ConfigError as e:
+        return e
+    return None
+
+
+@pytest.mark.slow
+def test_every_numeric_key_set_huge_or_tiny_is_refused_by_name_or_acts_as_an_allowed_value():
+    """Huge values (±1e30) are refused with an error naming the key (or the model quantity it feeds)
+    and the file; a tiny one (1e-30) is refused so too, or accepted only where the key's range starts
+    at 0 (a delay, a noise level, a damping, a reference value, a start time: it acts as 0)."""
+    unclear, accepted_huge, accepted_tiny_not_zero, n = [], [], [], 0
+    for source, scenario, path, overrides in _cases():
+        names = [k for k in path if isinstance(k, str)]
+        for value in (*HUGE, TINY):
+            n += 1
+            err = _outcome(scenario, overrides(value))
+            if err is None:
+                if value != TINY:
+                    accepted_huge.append((source, path, value))
+                elif not _starts_at_zero(_outcome(scenario, overrides(HUGE[0]))):
+                    accepted_tiny_not_zero.append((source, path))
+                continue
+            text = str(err)
+            if names[-1] not in text and not any(d in text for d in DERIVED):
+                unclear.append((source, path, value, text))
+    assert n > 1000  # the probe ran on every key (about 300 of them, three values each)
+    assert accepted_huge == []
+    assert accepted_tiny_not_zero == []
+    assert unclear == []
+
+
+def test_a_refused_value_names_file_key_value_and_range():
+    with pytest.raises(ConfigError) as e:
+        load_scenario("kang_regulation", {"plant_overrides": {"friction": {"viscous_nm_s_per_deg": 1e30}}})
+    assert str(e.value) == (
+        "kang_robot.yaml: friction.viscous_nm_s_per_deg: 1e+30 is outside the allowed range [0.0, 10.0]"
+    )
+    with pytest.raises(
+        ConfigError, match=r"reference.schedule\[0\]\[0\]: 1e\+30 is outside the allowed range \[0.0, 10.0\]"
+    ):
+        load_scenario("kang_regulation_20deg", {"reference": {"type": "steps", "schedule": [[1e30, 0.1]]}})
+    with pytest.raises(ConfigError, match=r"task.output_scale: 1e-320 is outside the allowed range \[1e-06"):
+        load_scenario("m220_regulation", {"task": {"output_scale": 1e-320}})

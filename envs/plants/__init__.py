@@ -78,17 +78,15 @@ def plant_spec(
             f"the control period {spec.control_period} s",
             cfg.source,
         )
-    for j in spec.joints:
-        if j.friction is not None:
-            j.friction.validate(f"friction[{j.name}]")
-            if friction_model == "lugre":
-                check_numerics(
-                    j.friction,
-                    spec.reflected_inertia(j.name),
-                    spec.timestep,
-                    spec.integrator,
-                    f"friction[{j.name}]",
-                )
+    try:  # the friction the preset's levels give, checked in the model's terms (and named so)
+        for j in spec.joints:
+            if j.friction is not None:
+                j.friction.validate(f"friction[{j.name}]")
+                if friction_model == "lugre":
+                    inertia = spec.reflected_inertia(j.name)
+                    check_numerics(j.friction, inertia, spec.timestep, spec.integrator, f"friction[{j.name}]")
+    except ConfigError as e:
+        raise ConfigError(e.field, e.message, cfg.source) from None
     if friction_model != "lugre":
         spec = replace(spec, joints=tuple(_strip(j, friction_model) for j in spec.joints))
     if check_ranges:

@@ -68,6 +68,16 @@ class SensorSpec:
 
 
 @dataclass(frozen=True)
+class Envelope:
+    """What a task may ask of the plant's joints: |angle| (rad), |speed| (rad/s), |acceleration|
+    (rad/s²). Scenario references and initial states outside it are refused (each plant says why)."""
+
+    position_rad: float
+    speed_rad_s: float
+    accel_rad_s2: float
+
+
+@dataclass(frozen=True)
 class PlantSpec:
     """Everything needed to compile and run one plant (SI). Built by plant_spec()."""
 
@@ -92,6 +102,7 @@ class PlantSpec:
     disturbance_joint: str | None = None  # joint of the rig's load-side disturbance motor (torque, N·m)
     randomization: dict[str, tuple[float, float]] = field(default_factory=dict)
     document: Any = None  # the plant module's typed document data (values the checks and designs use)
+    envelope: Envelope = Envelope(1e3, 1e3, 1e5)  # each plant module gives its own
 
     @property
     def substeps(self) -> int:
