@@ -162,7 +162,8 @@ class Scenario:
 @dataclass(frozen=True)
 class Limits:
     """What a reference (or the load torque) may ask, in its own unit: |value|, |rate| per s, |second
-    derivative| per s², start times up to the episode's end (s), frequencies up to Nyquist (Hz)."""
+    derivative| per s², start times (s) up to the longest episode the suite allows (a segment after a
+    shortened episode's end never comes), frequencies up to Nyquist (Hz)."""
 
     value: float
     rate: float
@@ -171,21 +172,21 @@ class Limits:
     f_max: float
 
     @classmethod
-    def of_output(cls, spec: PlantSpec, tracked: int, episode: float) -> Limits:
+    def of_output(cls, spec: PlantSpec, tracked: int) -> Limits:
         """The plant's envelope in the tracked sensor's unit: rad for an encoder, V for a tachometer."""
         env, period = spec.envelope, spec.control_period
         if spec.sensors[tracked].kind == "encoder":
-            return cls(env.position_rad, env.speed_rad_s, env.accel_rad_s2, episode, 0.5 / period)
+            return cls(env.position_rad, env.speed_rad_s, env.accel_rad_s2, MAX_EPISODE_S, 0.5 / period)
         gain = spec.sensors[tracked].gain
         rate = gain * env.accel_rad_s2
-        return cls(gain * env.speed_rad_s, rate, rate / period, episode, 0.5 / period)
+        return cls(gain * env.speed_rad_s, rate, rate / period, MAX_EPISODE_S, 0.5 / period)
 
     @classmethod
-    def of_load_torque(cls, spec: PlantSpec, episode: float) -> Limits:
+    def of_load_torque(cls, spec: PlantSpec) -> Limits:
         """A load torque up to 10x the drive's peak torque (N·m): beyond it no compensator can hold."""
         tau = 10.0 * spec.command_limit * spec.actuator_gain
         period = spec.control_period
-        return cls(tau, tau / period, tau / period**2, episode, 0.5 / period)
+        return cls(tau, tau / period, tau / period**2, MAX_EPISODE_S, 0.5 / period)
 
 
 def _schedule(r: Node, lim: Limits, rates: bool = False) -> tuple[tuple[float, float], ...]:
@@ -343,7 +344,7 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
         raise c.error("episode_s", f"{episode} must be a whole number of control periods ({period})")
     if steps > MAX_EPISODE_STEPS:
         raise c.error("episode_s", f"{steps} control periods > {MAX_EPISODE_STEPS}")
-    reference, preview = _reference(c.section("reference"), Limits.of_output(spec, tracked, episode))
+    reference, preview = _reference(c.section("reference"), Limits.of_output(spec, tracked))
     init = c.section("initial_state")
     n_init = 1 if spec.belts else len(spec.joints)
     obs, rw = c.section("observation"), c.section("reward")
@@ -368,7 +369,7 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
     if c.get("disturbance") is not None:
         if spec.disturbance_joint is None:
             raise c.error("disturbance", f"plant {spec.name} has no disturbance motor")
-        load = Limits.of_load_torque(spec, episode)
+        load = Limits.of_load_torque(spec)
         scenario = replace(scenario, disturbance=_reference(c.section("disturbance"), load)[0])
     b = c.section("benchmark")
     main = b.choice("main_metric", METRIC_NAMES)

@@ -258,6 +258,11 @@ def test_every_numeric_key_set_huge_or_tiny_is_refused_by_name_or_acts_as_an_all
     assert unclear == []
 
 
+def test_a_shortened_episode_keeps_its_scenarios_schedule():
+    sc = load_scenario("flexible_zero_speed", episode_s=0.4)  # its load torque starts at 2 s: never comes
+    assert sc.episode_steps == 10 and sc.disturbance is not None
+
+
 def test_a_refused_value_names_file_key_value_and_range():
     with pytest.raises(ConfigError) as e:
         load_scenario("kang_regulation", {"plant_overrides": {"friction": {"viscous_nm_s_per_deg": 1e30}}})
@@ -265,7 +270,7 @@ def test_a_refused_value_names_file_key_value_and_range():
         "kang_robot.yaml: friction.viscous_nm_s_per_deg: 1e+30 is outside the allowed range [0.0, 10.0]"
     )
     with pytest.raises(
-        ConfigError, match=r"reference.schedule\[0\]\[0\]: 1e\+30 is outside the allowed range \[0.0, 10.0\]"
+        ConfigError, match=r"reference.schedule\[0\]\[0\]: 1e\+30 is outside the allowed range \[0.0, 3600.0\]"
     ):
         load_scenario("kang_regulation_20deg", {"reference": {"type": "steps", "schedule": [[1e30, 0.1]]}})
     with pytest.raises(ConfigError, match=r"task.output_scale: 1e-320 is outside the allowed range \[1e-06"):
