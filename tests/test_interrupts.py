@@ -87,3 +87,29 @@ def test_an_interrupted_run_resumes_to_the_clean_runs_file(tmp_path):
     assert (tmp_path / "stopped" / "episodes.csv").read_bytes() == (
         tmp_path / "clean" / "episodes.csv"
     ).read_bytes()
+
+
+def test_ctrl_c_stops_parallel_training_and_leaves_no_worker(tmp_path):
+    """Two training runs on training's own spawn pool: Ctrl-C to the group ends them within seconds,
+    says how to continue (--resume) and leaves no worker behind."""
+    script = str(Path(__file__).parents[1] / "scripts" / "train.py")
+    config = ["--config", "residual_sac", "--scenario", "m220_reversal_tracking", "--seed", "0", "1"]
+    proc = subprocess.Popen(
+        [sys.executable, script, *config, "--workers", "2", "--out", str(tmp_path)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 180  # until both runs have written something (their folders)
+    while len(list(tmp_path.glob("*/*/*/*"))) < 2 and time.monotonic() < deadline:
+        time.sleep(0.2)
+    children = psutil.Process(proc.pid).children(recursive=True)
+    assert len(children) >= 2
+    t0 = time.monotonic()
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signal.SIGINT, err
+    assert time.monotonic() - t0 < STOP_S
+    assert "--resume" in err
+    assert _gone(children, 5.0) == []

@@ -269,9 +269,8 @@ def test_a_refused_value_names_file_key_value_and_range():
     assert str(e.value) == (
         "kang_robot.yaml: friction.viscous_nm_s_per_deg: 1e+30 is outside the allowed range [0.0, 10.0]"
     )
-    with pytest.raises(
-        ConfigError, match=r"reference.schedule\[0\]\[0\]: 1e\+30 is outside the allowed range \[0.0, 3600.0\]"
-    ):
+    schedule = r"reference.schedule\[0\]\[0\]: 1e\+30 is outside the allowed range \[0.0, 3600.0\]"
+    with pytest.raises(ConfigError, match=schedule):
         load_scenario("kang_regulation_20deg", {"reference": {"type": "steps", "schedule": [[1e30, 0.1]]}})
     with pytest.raises(ConfigError, match=r"task.output_scale: 1e-320 is outside the allowed range \[1e-06"):
         load_scenario("m220_regulation", {"task": {"output_scale": 1e-320}})

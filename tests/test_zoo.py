@@ -3,6 +3,7 @@ suite controllers, the residual wrapper starts as its base, and record_video wor
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import subprocess
 import sys
@@ -18,7 +19,9 @@ from frictiongym.agents.registry import make
 from frictiongym.agents.zoo import Residual, zoo_env_kwargs, zoo_policy, zoo_run
 from frictiongym.envs.config import ConfigError, configs_dir
 
-pytest.importorskip("rl_zoo3")
+# rl_zoo3 is run in subprocesses only: importing it patches Gymnasium's TimeLimit for the whole process
+# (rl_zoo3.gym_patches adds info["TimeLimit.truncated"]), which would change every other test's envs
+pytestmark = pytest.mark.skipif(importlib.util.find_spec("rl_zoo3") is None, reason="the zoo extra")
 ZOO_FILE = configs_dir() / "zoo" / "sac.yml"
 ROOT = Path(__file__).resolve().parents[1]
 
