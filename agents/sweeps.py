@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -156,10 +157,16 @@ def run_sweep(sweep: Sweep, out: Path, address: str | None = None, workers: int 
         ),
         run_config=tune.RunConfig(name=sweep.name, storage_path=str(out / "tune"), verbose=0),
     )
+    # Ctrl-C raises KeyboardInterrupt here, as in every other run of the suite (scripts/train.py stops at
+    # once and says so); Tune's own handler would first wind its trials down
+    os.environ.setdefault("TUNE_DISABLE_SIGINT_HANDLER", "1")
     results = tuner.fit()
     rows = []
     for r in results:
-        best = r.metrics_dataframe[METRIC].min() if r.metrics_dataframe is not None else math.nan
+        frame = r.metrics_dataframe
+        best = (
+            frame[METRIC].min() if frame is not None and METRIC in frame else math.nan
+        )  # nan: never reported
         rows.append(
             {
                 **{k: v for k, v in r.config.items()},

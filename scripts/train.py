@@ -45,7 +45,8 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--workers must be >= 1 and seeds >= 0")
     if args.sweep:
         return run_interruptibly(
-            lambda: sweep(args), f"finished trials are in {args.out}; rerun the same command to run the rest"
+            lambda: sweep(args),
+            f"the trials' model folders so far are in {args.out}; rerunning starts the sweep anew",
         )
     if args.export:
         for run in args.export:

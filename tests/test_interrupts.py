@@ -113,3 +113,29 @@ def test_ctrl_c_stops_parallel_training_and_leaves_no_worker(tmp_path):
     assert time.monotonic() - t0 < STOP_S
     assert "--resume" in err
     assert _gone(children, 5.0) == []
+
+
+def test_ctrl_c_stops_a_sweep_on_ray_tune_and_leaves_no_process(tmp_path):
+    """A training sweep on a local Ray (Tune would first wind its trials down on Ctrl-C; the suite stops
+    at once, as everywhere): exit 130 within seconds, no Ray process left."""
+    pytest.importorskip("ray")
+    script = str(Path(__file__).parents[1] / "scripts" / "train.py")
+    proc = subprocess.Popen(
+        [sys.executable, script, "--sweep", "residual_sac_alpha", "--workers", "2", "--out", str(tmp_path)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    deadline = time.monotonic() + 240  # until a trial has started training (its model folder)
+    while not list(tmp_path.glob("residual_sac_alpha/*/seed*")) and time.monotonic() < deadline:
+        time.sleep(0.5)
+    children = psutil.Process(proc.pid).children(recursive=True)
+    assert children  # Ray's processes and the trials' workers
+    t0 = time.monotonic()
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + signal.SIGINT, err
+    assert time.monotonic() - t0 < 2 * STOP_S  # Ray's shutdown takes a few seconds more than a pool's
+    assert "interrupted (SIGINT)" in err
+    assert _gone(children, 10.0) == []
