@@ -17,9 +17,15 @@ psutil = pytest.importorskip("psutil")
 pytestmark = pytest.mark.slow
 
 SCRIPT = str(Path(__file__).parents[1] / "scripts" / "leaderboard.py")
-# 60 episodes of 10,000 periods on 2 workers: about half a minute of work, far more than a stop may take
-ARGS = ["--scenarios", "flexible_speed_step_fast", "--seeds", "1-20", "--randomize"]
-ARGS += ["--controllers", "PID", "SF", "--models", "--workers", "2"]
+# M220 point-to-point moves under PID (and Zero, always run): about 0.1 s per episode on 2 workers
+SEEDS, RESUME_SEEDS = 150, 30  # 300 episodes (~30 s of work, several times what a stop may take); 60
+
+
+def _args(seeds: int) -> list[str]:
+    suite = ["--scenarios", "m220_point_to_point", "--seeds", f"1-{seeds}", "--randomize"]
+    return [*suite, "--controllers", "PID", "--models", "--workers", "2"]
+
+
 STOP_S = 8.0  # an interrupted run ends within this (the remaining work takes several times longer)
 
 
@@ -28,11 +34,11 @@ def _rows(out: Path) -> int:
     return f.read_text().count("\n") - 1 if f.exists() else -1
 
 
-def _start(out: Path) -> tuple[subprocess.Popen, list]:
+def _start(out: Path, seeds: int = SEEDS) -> tuple[subprocess.Popen, list]:
     """The leaderboard in a session of its own, once its pool runs and a first chunk of rows is on disk;
     with the processes it started (pool workers, resource tracker)."""
     proc = subprocess.Popen(
-        [sys.executable, SCRIPT, *ARGS, "--out", str(out)],
+        [sys.executable, SCRIPT, *_args(seeds), "--out", str(out)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
@@ -64,7 +70,7 @@ def test_a_signal_stops_the_run_within_seconds_and_keeps_its_rows(tmp_path, sign
     assert proc.returncode == 128 + signum, err
     assert took < STOP_S, f"took {took:.1f} s to stop"
     assert "rerun the same command to resume" in err and "episodes.csv" in err
-    assert before <= _rows(tmp_path / "run") < 60  # every finished row kept, the run not finished
+    assert before <= _rows(tmp_path / "run") < 2 * SEEDS  # every finished row kept, the run not finished
     assert _gone(children, 5.0) == []
 
 
@@ -76,17 +82,16 @@ def test_a_killed_parent_leaves_no_process_behind(tmp_path):
 
 
 def test_an_interrupted_run_resumes_to_the_clean_runs_file(tmp_path):
-    proc, _ = _start(tmp_path / "stopped")
+    proc, _ = _start(tmp_path / "stopped", RESUME_SEEDS)
     os.killpg(proc.pid, signal.SIGINT)
     proc.communicate(timeout=60)
+    assert _rows(tmp_path / "stopped") < 2 * RESUME_SEEDS
     for out in (tmp_path / "stopped", tmp_path / "clean"):
-        run = subprocess.run(
-            [sys.executable, SCRIPT, *ARGS, "--out", str(out)], capture_output=True, timeout=600
-        )
+        args = [sys.executable, SCRIPT, *_args(RESUME_SEEDS), "--out", str(out)]
+        run = subprocess.run(args, capture_output=True, timeout=600)
         assert run.returncode == 0, run.stderr
-    assert (tmp_path / "stopped" / "episodes.csv").read_bytes() == (
-        tmp_path / "clean" / "episodes.csv"
-    ).read_bytes()
+    stopped, clean = (tmp_path / d / "episodes.csv" for d in ("stopped", "clean"))
+    assert stopped.read_bytes() == clean.read_bytes()
 
 
 def test_ctrl_c_stops_parallel_training_and_leaves_no_worker(tmp_path):
