@@ -104,6 +104,7 @@ def test_saved_model_is_an_entry_and_a_mismatched_scenario_is_skipped_with_its_r
         registry.available((tmp_path / "lb",))
 
 
+@pytest.mark.slow
 def test_sigkill_then_resume_gives_the_clean_runs_file(tmp_path):
     """A real kill: the leaderboard script is SIGKILLed once some rows are on disk; rerunning the same
     command finishes the run, and episodes.csv equals a clean run's byte for byte."""

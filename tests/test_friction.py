@@ -63,6 +63,7 @@ def test_random_draws_are_checked_and_reproducible():
 @pytest.mark.parametrize(
     ("plant", "joint"), [("kang_robot", "rotor"), ("flexible_servo", "shaft2"), ("m220", "drive")]
 )
+@pytest.mark.slow
 def test_breakaway_and_presliding_match_radau(plant, joint):
     spec = plant_spec(plant)
     for d in (1, -1):
@@ -93,6 +94,7 @@ def test_sliding_follows_stribeck_curve_both_directions():
     assert forces[2] < forces[0]
 
 
+@pytest.mark.slow
 def test_stickslip_period_matches_radau():
     spec = plant_spec("kang_robot")
     r = validation.stickslip_period(spec, "rotor", spec.document.kp_nm_per_rad, math.radians(1.0), 25.0)

@@ -40,6 +40,7 @@ def test_rejected_draws_counts_what_reset_refuses():
     assert rejected_draws(spec, range(200)) == []
 
 
+@pytest.mark.slow
 def test_check_draws_script_reports_zero_rejections():
     proc = subprocess.run(
         [sys.executable, str(ROOT / "scripts/check_draws.py"), "--seeds", "300", "--workers", "1"],

@@ -78,6 +78,7 @@ def test_document_step_numbers_and_the_full_model_through_the_points():
     assert full["a"] < 0.5 * two["a"]  # the exponential term matters: a is less than half the printed one
 
 
+@pytest.mark.slow
 def test_document_friction_lines_come_from_exactly_one_subset_of_rows():
     """Of all subsets of the 16 rows, exactly one per direction reproduces every printed digit of F_C and
     F_v (§2.3): up leaves out rows 1, 3, 4; down leaves out rows 2, 3, 4."""
@@ -88,6 +89,7 @@ def test_document_friction_lines_come_from_exactly_one_subset_of_rows():
     assert up == [[2, *range(5, 17)]] and down == [[1, *range(5, 17)]]
 
 
+@pytest.mark.slow
 def test_m220_identified_from_the_document_reproduces_the_table():
     """The recommended fit (rows above 7000 counts/s) as an override: PI holds on the identified plant at the
     table's speeds need the table's commands within 0.005 V on rows 5-16 (the low-speed hump of rows 1-4
@@ -159,6 +161,7 @@ def test_too_few_points_per_direction_is_an_error(tmp_path):
 
 
 # ------------------------------------------------------------------------------------------- recovery
+@pytest.mark.slow
 @pytest.mark.parametrize("plant", ["m220", "kang_robot", "flexible_servo"])
 def test_identifiable_parameters_are_recovered_within_10_percent(plant):
     """LuGre identification on randomised plants (noise and quantisation on): every parameter it reports

@@ -50,6 +50,7 @@ def test_unknown_controller_is_a_clear_error():
         leaderboard.run("paper", ["LQG"], out=None, progress=False)
 
 
+@pytest.mark.slow
 def test_script_writes_markdown_csv_and_plots(tmp_path):
     proc = subprocess.run(
         [
@@ -82,6 +83,7 @@ def test_script_writes_markdown_csv_and_plots(tmp_path):
     assert (tmp_path / "response_kang_regulation_20deg.png").stat().st_size > 5000
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("suite", ["paper", "default", "test"])
 def test_every_classical_baseline_beats_zero_on_every_scenario(suite):
     """Each scenario needs compensation: doing nothing loses to every classical baseline on its main

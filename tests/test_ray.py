@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+pytestmark = pytest.mark.slow  # starts a local Ray
 ray = pytest.importorskip("ray")
 psutil = pytest.importorskip("psutil")
 

@@ -39,6 +39,7 @@ def _episode_return(policy, seed: int) -> float:
     return total
 
 
+@pytest.mark.slow
 def test_short_sac_run_beats_random_and_zero_policies():
     """4000 steps (~45 s CPU). Random torques score about -1900 per episode, zero torque -500 (the rotor
     stays at 20 deg); a learned regulator must at least halve the zero policy's cost."""

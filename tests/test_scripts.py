@@ -38,6 +38,7 @@ REQUIRED = [
 ]
 
 
+@pytest.mark.slow
 def test_reproduce_writes_passing_report(tmp_path):
     out = tmp_path / "rep"
     proc = subprocess.run(

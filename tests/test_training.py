@@ -66,6 +66,7 @@ def train(tmp_path: Path, algo: str, out: str = "run", resume: bool = False, **k
     return TrainingRun(cfg, 0, folder, "pytest", progress=False).train(resume), folder
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algo", ["SAC", "TD3", "TQC", "PPO", "RecurrentPPO"])
 def test_every_algorithm_trains_and_its_saved_model_acts_identically(tmp_path, algo):
     """A few hundred steps per algorithm; the model folder loads through the registry and reproduces the
@@ -81,6 +82,7 @@ def test_every_algorithm_trains_and_its_saved_model_acts_identically(tmp_path, a
     assert np.mean(main) == manifest["validation"]["value"]
 
 
+@pytest.mark.slow
 def test_resume_continues_the_same_run(tmp_path):
     """--resume keeps the history, the step count and the training-seed schedule, and trains to the new
     total; without --resume a finished folder is refused."""
@@ -210,6 +212,7 @@ def test_policy_inputs_sizes():
     assert PolicyInputs(2, False, True).size(sc) == sc.layout.size + 2 * (len(sc.spec.sensors) + 1) + 1
 
 
+@pytest.mark.slow
 def test_sim2real_on_a_tiny_grid(tmp_path):
     """scripts/sim2real.py: one-axis shifts (inadmissible pins left out), joint in/out-of-distribution sets,
     the CSV, the plot and the summary; a rerun resumes from episodes.csv."""
