@@ -60,6 +60,20 @@ def json_safe_spec(spec: EnvSpec | None) -> EnvSpec | None:
     return dataclasses.replace(spec, kwargs={**spec.kwargs, "scenario": str(spec.kwargs["scenario"])})
 
 
+class JsonSafeSpec:
+    """The spec gym.make / gym.make_vec give an env, kept JSON-safe (json_safe_spec) as it is set."""
+
+    _spec: EnvSpec | None = None
+
+    @property
+    def spec(self) -> EnvSpec | None:
+        return self._spec
+
+    @spec.setter
+    def spec(self, value: EnvSpec | None) -> None:
+        self._spec = json_safe_spec(value)
+
+
 def decode_observation(scenario: Scenario, obs: np.ndarray) -> dict[str, Any]:
     """Physical readings from an observation, by the scenario's layout: sensors (rad or V), reference,
     preview, held command. The observation must have the layout's shape and be finite."""
@@ -79,7 +93,7 @@ def decode_observation(scenario: Scenario, obs: np.ndarray) -> dict[str, Any]:
     }
 
 
-class ServoEnv(gym.Env, EzPickle):
+class ServoEnv(JsonSafeSpec, gym.Env, EzPickle):
     __doc__ = "A friction-dominated servo under sampled-data control (frictiongym)." + OBSERVATION_DOC
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 25}
     default_scenario = "kang_regulation"
@@ -126,16 +140,6 @@ class ServoEnv(gym.Env, EzPickle):
         self._renderer: mujoco.Renderer | None = None
         self._ids = np.array([0])
         self._started = self._closed = False
-
-    @property
-    def spec(self) -> EnvSpec | None:  # type: ignore[override]  (gym.Env's is a plain attribute)
-        return self._spec
-
-    @spec.setter
-    def spec(self, value: EnvSpec | None) -> None:
-        self._spec = json_safe_spec(value)
-
-    _spec: EnvSpec | None = None
 
     # --------------------------------------------------------------- Gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:

@@ -11,7 +11,6 @@ from typing import Any
 import mujoco
 import numpy as np
 from gymnasium import spaces
-from gymnasium.envs.registration import EnvSpec
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
@@ -20,7 +19,7 @@ from .core import ServoCore, check_action, check_options
 from .metrics import defined_metrics
 from .sampler import check_seed
 from .scenario import load_scenario
-from .servo_env import FlexibleServoEnv, KangRobotEnv, M220Env, ServoEnv, check_plant, json_safe_spec
+from .servo_env import FlexibleServoEnv, JsonSafeSpec, KangRobotEnv, M220Env, ServoEnv, check_plant
 from .step import OBS_CLIP
 
 
@@ -37,7 +36,7 @@ def _seeds(seed: int | Sequence[int] | None, n: int, rng: np.random.Generator) -
     return [check_seed(s, f"seed[{i}]") for i, s in enumerate(seed)]
 
 
-class ServoVectorEnv(VectorEnv):
+class ServoVectorEnv(JsonSafeSpec, VectorEnv):
     """num_envs episodes of one scenario stepped together on a thread pool (nthread 0: all CPUs).
 
     reset(seed=s) seeds env i with s + i (or pass a list). An env whose episode ended is reset on the
@@ -95,16 +94,6 @@ class ServoVectorEnv(VectorEnv):
         self._all = np.arange(num_envs)
         self._started = False  # VectorEnv.close() sets self.closed
         self._renderer: tuple[mujoco.Renderer, mujoco.MjData] | None = None
-
-    @property
-    def spec(self) -> EnvSpec | None:  # type: ignore[override]
-        return self._spec
-
-    @spec.setter
-    def spec(self, value: EnvSpec | None) -> None:
-        self._spec = json_safe_spec(value)
-
-    _spec: EnvSpec | None = None
 
     def ground_truth(self) -> dict[str, np.ndarray]:
         """True states of every env now, one row each: what a single env's ground_truth() returns (qpos
