@@ -240,7 +240,7 @@ class StateFeedback(Controller):
         return float(np.sign(y_est)) * F / self.gain
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        o = decode_observation(self.sc, obs)
+        o = decode_observation(self.sc, obs, trusted=True)  # the env's own observation
         y, yr = o["sensors"][self.tacho], o["reference"]
         d = self.design
         umax = self.settings.u_max_v
