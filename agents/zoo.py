@@ -40,10 +40,10 @@ class Residual(ResidualEnv):
         scenario = env.unwrapped.scenario
         if (reason := controller.why_not(scenario)) is not None:
             raise ConfigError("env_wrapper.base", f"{base} does not apply to {scenario.name}: {reason}")
-        if controller.plant_overrides(scenario):
+        if hardware := controller.plant_overrides(scenario):
             raise ConfigError(
                 "env_wrapper.base",
-                f"{base} brings hardware ({controller.plant_overrides(scenario)}) that an env made by "
+                f"{base} brings hardware ({hardware}) that an env made by "
                 "gym.make lacks; choose a base without it, or train with scripts/train.py",
             )
         super().__init__(env, controller, alpha)
@@ -112,7 +112,7 @@ def zoo_policy(run: str | Path, algo: str, name: str | None = None) -> SB3Policy
         (w[name_of_wrapper] for w in wrappers if isinstance(w, dict) and name_of_wrapper in w), None
     )
     model_zip = next(run.glob("*.zip"))
-    policy = SB3Policy.load(
+    return SB3Policy.load(
         model_zip,
         algorithm_class(algo.upper()).__name__,
         name=name or f"zoo-{algo}-{run.name}",
@@ -121,7 +121,6 @@ def zoo_policy(run: str | Path, algo: str, name: str | None = None) -> SB3Policy
         base=make(residual["base"]) if residual else None,
         alpha=residual["alpha"] if residual else 1.0,
     )
-    return policy
 
 
 def validate(run: str | Path, algo: str, env_id: str, episodes: int = 10) -> dict[str, Any]:
