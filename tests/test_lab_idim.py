@@ -1,0 +1,132 @@
+"""The lab's inverse-model identification (agents/lab/drive_log.py, idim.py) on the EMPS measurements: the
+published IDIM-LS numbers recomputed from the data, what the data say beyond the description, the CSV
+path a lab takes with its own drive, and the friction-structure table's contract."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from frictiongym.agents.lab import idim
+from frictiongym.agents.lab.drive_log import emps_log, read_drive_log, write_drive_log
+from frictiongym.agents.reproduce import janot2019, published_node
+from frictiongym.envs.config import ConfigError
+
+
+@pytest.fixture(scope="module")
+def estimation():
+    return emps_log("estimation")
+
+
+@pytest.fixture(scope="module")
+def validation():
+    return emps_log("validation")
+
+
+def test_the_emps_logs_are_read_in_si_with_the_description_gains(estimation, validation):
+    for log in (estimation, validation):
+        assert log.unit == "m" and log.period == pytest.approx(1e-3, rel=1e-4)  # 1 kHz, §2.2
+        assert log.drive_gain == pytest.approx(35.15, abs=0.005)  # gτ, eq. (7)
+        assert (log.kp, log.kv) == (160.18, 243.45)  # eq. (6)
+    assert not estimation.disturbance.any() and set(np.unique(validation.disturbance)) == {0.0, 5.0}
+
+
+def test_the_estimation_positions_are_on_the_encoder_grid_of_50_nm(estimation):
+    # 50,000 counts/rev (§2.2) through a 2.5 mm/rev screw: every step of qm is a multiple of 5e-8 m
+    counts = np.diff(estimation.position) / 5e-8
+    assert np.abs(counts - np.round(counts)).max() < 1e-6
+    assert np.abs(np.round(counts)).min() == 0  # and it does rest on one count
+
+
+def test_the_logged_command_is_eq6_plus_the_pulses_in_volts(estimation, validation):
+    # ν = kp·kv·(qg - qm) - kv·q̇m with the 2-tap FIR velocity (§2.2); the pulses jump the logged ν by 5
+    for log, tol in ((estimation, 0.02), (validation, 0.15)):  # V; the validation qm is processed (README)
+        q = log.position
+        qf = 0.5 * q + 0.5 * np.concatenate([[q[0]], q[:-1]])
+        dq = np.concatenate([[0.0], np.diff(qf)]) / 1e-3
+        nu = log.kp * log.kv * (log.reference - q) - log.kv * dq
+        assert np.abs(log.command - log.disturbance - nu)[10:].max() < tol  # V (the command spans ±4..9 V)
+    edges = np.flatnonzero(np.diff(validation.disturbance) > 0)
+    assert len(edges) == 25
+    assert np.diff(validation.command)[edges] == pytest.approx(5.0, abs=0.3)
+
+
+@pytest.mark.parametrize("delay", [0, 1])
+def test_a_csv_of_the_documented_columns_gives_the_same_identification_as_the_mat(
+    estimation, tmp_path, delay
+):
+    p = tmp_path / "drive.csv"
+    write_drive_log(p, estimation)
+    log = read_drive_log(p)
+    np.testing.assert_array_equal(log.position, estimation.position)
+    assert (log.drive_gain, log.kp, log.kv) == (estimation.drive_gain, estimation.kp, estimation.kv)
+    cfg = idim.IdimSettings(delay_samples=delay)
+    a = idim.fit("coulomb_viscous", idim.states(estimation, cfg), cfg)
+    b = idim.fit("coulomb_viscous", idim.states(log, cfg), cfg)
+    np.testing.assert_array_equal(a.theta, b.theta)
+
+
+def test_a_csv_without_the_needed_columns_is_refused_naming_them(tmp_path):
+    p = tmp_path / "drive.csv"
+    p.write_text("# drive_gain_n_per_v = 35\ntime_s,position_m,command_V\n0,0,0\n0.001,0,0\n")
+    with pytest.raises(ConfigError, match="need one each of time_s, position_m"):
+        read_drive_log(p)
+
+
+def test_idim_ls_reproduces_the_published_estimates_their_std_and_the_cross_test():
+    rows = list(janot2019.idim_rows(idim.emps_table()))
+    assert len(rows) == 27
+    failed = [r for r in rows if not r["pass"]]
+    assert not failed, failed
+    m = next(r for r in rows if r["id"] == "emps.idim.mass_kg")
+    assert m["simulated"] == pytest.approx(95.1089, abs=1e-4)
+
+
+def test_scipy_default_padding_would_not_reproduce_them(estimation):
+    # the reason for matlab_filtfilt: scipy's padlen 3·n moves the Coulomb estimate by 0.04 N (§3.4: 20.3935)
+    from scipy import signal
+
+    b, a = signal.butter(4, 0.2)
+    q = signal.filtfilt(b, a, estimation.position)
+    assert np.abs(q - idim.matlab_filtfilt(b, a, estimation.position))[:20].max() > 1e-9
+
+
+def test_the_offset_and_asymmetric_coulomb_levels_are_not_identifiable_together():
+    row = next(r for r in idim.emps_table() if r.fit.structure == "coulomb_viscous_asym_offset")
+    assert row.fit.condition_number > idim.CONDITION_LIMIT and not row.fit.identifiable
+
+
+def test_every_fit_sees_only_the_estimation_set(estimation, validation):
+    # changing the validation log changes the cross-test, never the parameters
+    cfg = idim.IdimSettings()
+    rows = idim.model_table(estimation, validation, ("coulomb_viscous",), (0,), cfg)
+    doubled = idim.model_table(estimation, estimation, ("coulomb_viscous",), (0,), cfg)
+    np.testing.assert_array_equal(rows[0].fit.theta, doubled[0].fit.theta)
+    assert rows[0].validation.relative_error_pct != doubled[0].validation.relative_error_pct
+    assert doubled[0].validation.relative_error_pct == pytest.approx(rows[0].fit.relative_error_pct)
+
+
+def test_a_structure_of_the_suite_beats_both_published_models_on_the_validation_set():
+    table = idim.emps_table()
+    best = janot2019.best(table)
+    pub = published_node("emps2019").section("idim_ls").section("cross_test").number("relative_error_pct")
+    asym = next(r for r in table if r.fit.structure == "coulomb_viscous_asym" and r.delay_samples == 0)
+    assert best.fit.identifiable
+    assert best.validation.relative_error_pct < min(pub, asym.validation.relative_error_pct)
+
+
+def test_the_profile_interval_of_a_nonlinear_parameter_brackets_its_estimate():
+    for r in idim.emps_table():
+        if r.fit.nonlinear is not None:
+            iv = r.fit.nonlinear[1]
+            assert iv.low < iv.value < iv.high
+            lo, hi = idim.STRUCTURES[r.fit.structure].search
+            assert lo <= iv.value <= hi
+
+
+def test_the_bristle_state_turns_over_about_its_presliding_length():
+    # from s = -1, moving at v for a travel x: s = 1 - 2·exp(-x/L); at x = L·ln 2, s = 0
+    h, v, length = 1e-3, 1e-3, 1e-5
+    s = idim.bristle_state(np.concatenate([[-v] * 200, [v] * 200]), length, h)
+    k = int(np.argmax(s[200:] >= 0))
+    assert (k + 1) * v * h == pytest.approx(length * np.log(2), abs=v * h)
