@@ -21,7 +21,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from .base import Controller, Zero
-from .classical import PD, PID, RDFC, CoulombViscousFF, LuGreObserver, Southward, StateFeedback
+from .classical import PD, PID, RDFC, CoulombViscousFF, LabPD, LuGreObserver, Southward, StateFeedback
 from .learned import PolicyInputs, SB3Policy
 
 ENTRY_POINT_GROUP = "frictiongym.controllers"
@@ -31,6 +31,7 @@ BUILTIN: dict[str, Callable[[], Controller]] = {
     "Zero": Zero,
     "PD": PD,
     "PID": PID,
+    "LabPD": LabPD,
     "Southward": Southward,
     "RDFC": RDFC,
     "SF": StateFeedback,

@@ -264,6 +264,16 @@ class Node:
     def interval(self, key: str, low: float = -math.inf, high: float = math.inf, **kw: Any):
         return self._checked(interval, key, low, high, **kw)
 
+    def string(self, key: str, **kw: Any) -> str:
+        """A non-empty string (a name, a file path)."""
+
+        def check(value: Any, field: str) -> str:
+            if not isinstance(value, str) or not value.strip():
+                raise ConfigError(field, f"expected a non-empty string, got {value!r}")
+            return value
+
+        return self._checked(check, key, **kw)
+
     def choice(self, key: str, options: tuple[str, ...] | list[str], **kw: Any) -> str:
         def check(value: Any, field: str) -> str:
             if value not in options:

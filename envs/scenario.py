@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from . import recorded
 from .config import ConfigError, Node, interval, load_yaml, merge, number, preset_names, preset_path
 from .friction import FRICTION_MODELS
 from .metrics import METRIC_NAMES
@@ -26,7 +27,7 @@ from .plants import PlantSpec, plant_names, plant_spec
 from .plants.mjcf import friction_joints
 from .step import ObservationLayout, observation_layout
 
-REFERENCE_TYPES = ("constant", "steps", "ramps", "sine", "triangle", "trapezoid")
+REFERENCE_TYPES = ("constant", "steps", "ramps", "sine", "triangle", "trapezoid", "recorded")
 DEFAULTS = "_defaults"  # configs/scenarios/_defaults.yaml, which every scenario extends
 MAX_EPISODE_S = 3600.0  # one hour of simulated time
 MAX_EPISODE_STEPS = 1_000_000  # the per-episode logs hold 3 floats per step and simulation
@@ -55,6 +56,9 @@ class Reference:
     - trapezoid: point-to-point moves from offset, schedule of [t_start, target], each with a trapezoidal
       velocity profile limited by max_velocity and max_acceleration (units per s, per s²), finished
       before the next starts.
+    - recorded: a measured signal replayed, scale·x(t) linearly interpolated between its samples (t from
+      the recording's first sample; the last value holds after its end): `signal` of the log `file`
+      (envs/recorded.py: a .mat or CSV, a path relative to configs/ or absolute), time in `time_signal`.
     """
 
     type: str
@@ -66,6 +70,16 @@ class Reference:
     phase_rad: float = 0.0
     max_velocity: float = 0.0
     max_acceleration: float = 0.0
+    file: str = ""
+    signal: str = ""
+    time_signal: str = ""
+    scale: float = 1.0
+
+    def samples(self) -> tuple[np.ndarray, np.ndarray]:
+        """A recorded reference's sample times (s, from 0) and values (scaled)."""
+        rec = recorded.load(self.file)
+        t = rec.time(self.time_signal)
+        return t - t[0], self.scale * rec.signal(self.signal)
 
     def move_duration(self, distance: float) -> float:
         """Duration (s) of a trapezoidal move over distance (triangular if it never reaches v_max)."""
@@ -100,6 +114,9 @@ class Reference:
             return values[np.searchsorted(starts, t + 1e-12, side="right")]
         if self.type == "trapezoid":
             return self._moves(t)
+        if self.type == "recorded":
+            ts, x = self.samples()
+            return np.interp(t, ts, x)
         if self.type == "ramps":
             starts = np.array([s for s, _ in self.schedule])
             rates = np.array([r for _, r in self.schedule])
@@ -223,6 +240,28 @@ def _reference(r: Node, lim: Limits) -> tuple[Reference, int]:
         return Reference("steps", schedule=_schedule(r, lim)), preview
     if kind == "ramps":
         return Reference("ramps", schedule=_schedule(r, lim, rates=True), offset=offset), preview
+    if kind == "recorded":
+        ref = Reference(
+            "recorded",
+            file=r.string("file"),
+            signal=r.string("signal"),
+            time_signal=r.string("time_signal"),
+            scale=r.number("scale", -1e6, 1e6, default=1.0),
+        )
+        try:
+            ts, x = ref.samples()
+        except ConfigError as e:
+            raise r.error("file", str(e)) from None
+        peak, rate = float(np.abs(x).max()), float(np.abs(np.diff(x) / np.diff(ts)).max())
+        if peak > lim.value:
+            raise r.error(
+                "signal", f"the recording reaches {peak:.6g}, beyond the plant's envelope {lim.value}"
+            )
+        if rate > lim.rate:
+            raise r.error(
+                "signal", f"the recording moves at {rate:.6g}/s, beyond the envelope's {lim.rate}/s"
+            )
+        return ref, preview
     if kind == "trapezoid":
         ref = Reference(
             "trapezoid",
@@ -371,6 +410,11 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
             raise c.error("disturbance", f"plant {spec.name} has no disturbance motor")
         load = Limits.of_load_torque(spec)
         scenario = replace(scenario, disturbance=_reference(c.section("disturbance"), load)[0])
+    for key, ref in (("reference", scenario.reference), ("disturbance", scenario.disturbance)):
+        if ref is not None and ref.type == "recorded" and ref.samples()[0][-1] < (steps - 1) * period - 1e-9:
+            raise c.error(
+                "episode_s", f"{episode} s is longer than the recorded {key} ({ref.samples()[0][-1]:.6g} s)"
+            )
     b = c.section("benchmark")
     main = b.choice("main_metric", METRIC_NAMES)
     secondary = b["secondary_metrics"]

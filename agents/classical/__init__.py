@@ -1,11 +1,12 @@
-"""Classical baselines, one module per family: PD/PID (pid.py), Southward and RDFC (southward_rdfc.py),
-state feedback + observer with relay / high-gain compensation (state_feedback.py), LuGre-observer
-compensation (lugre_observer.py) and Coulomb + viscous feed-forward (feedforward.py). Each family's
-settings object reads its defaults from configs/controllers.yaml once; constructor arguments override."""
+"""Classical baselines, one module per family: PD/PID and a plant's own lab PD (pid.py), Southward and
+RDFC (southward_rdfc.py), state feedback + observer with relay / high-gain compensation
+(state_feedback.py), LuGre-observer compensation (lugre_observer.py) and Coulomb + viscous feed-forward
+(feedforward.py). Each family's settings object reads its defaults from configs/controllers.yaml once;
+constructor arguments override."""
 
 from .feedforward import CoulombViscousFF
 from .lugre_observer import LuGreObserver, LuGreObserverSettings
-from .pid import PD, PID, PIDSettings, design_pid
+from .pid import PD, PID, LabPD, PIDSettings, design_pid
 from .southward_rdfc import RDFC, RDFCSettings, Southward, SouthwardSettings
 from .state_feedback import StateFeedback, StateFeedbackSettings
 
@@ -17,6 +18,7 @@ __all__ = [
     "RDFC",
     "SETTINGS",
     "CoulombViscousFF",
+    "LabPD",
     "LuGreObserver",
     "LuGreObserverSettings",
     "PIDSettings",

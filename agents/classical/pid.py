@@ -12,6 +12,7 @@ from typing import Any, ClassVar
 
 from frictiongym.envs.config import Node
 from frictiongym.envs.plants import PlantSpec
+from frictiongym.envs.scenario import Scenario
 
 from .. import settings as cfg
 from ..base import EpisodeContext, PhysicalController
@@ -28,10 +29,12 @@ from .design import (
 @dataclass(frozen=True)
 class LoopDesign:
     """Closed-loop choice for one plant: damping ζ and natural frequency ω_n (rad/s); ω_n None means
-    "from the plant document's position stiffness K_p" (Kang §6)."""
+    "from the plant document's position stiffness K_p" (Kang §6). lab_controller: the plant's own lab
+    controller instead (its document's gains and velocity filter, EMPS eq. 6); ζ and ω_n then follow."""
 
-    zeta: float
+    zeta: float | None
     natural_frequency_rad_s: float | None = None
+    lab_controller: bool = False
 
 
 @dataclass(frozen=True)
@@ -51,6 +54,9 @@ class PIDSettings:
             ls = s.section("loops")
             for plant in list(ls.keys()):
                 p = ls.section(plant)
+                if p.boolean("lab_controller", default=False):
+                    loops[plant] = LoopDesign(None, None, lab_controller=True)
+                    continue
                 hz, rad = p.get("natural_frequency_hz"), p.get("natural_frequency_rad_s")
                 if hz is not None and rad is not None:
                     raise p.error("natural_frequency_hz", "give natural_frequency_hz or _rad_s, not both")
@@ -86,7 +92,11 @@ def design_pid(ctx: EpisodeContext, integral: bool, settings: PIDSettings | None
         ct = sum(j.viscous for j in spec.joints)
         return pi_speed_loop(Jt, ct, b, sensor.gain, loop.natural_frequency_rad_s, loop.zeta)
     zeta = loop.zeta
-    if loop.natural_frequency_rad_s is None:
+    if loop.lab_controller:
+        pd = lab_gains(spec)
+        wn = math.sqrt(pd.kp * b / J)
+        zeta = (c + b * pd.kd) / (2 * wn * J)  # the lab's loop, J s² + (c + b·kd) s + b·kp
+    elif loop.natural_frequency_rad_s is None:
         pd = pd_from_stiffness(J, c, b, spec.document.kp_nm_per_rad, zeta)
         wn = math.sqrt(pd.kp * b / J)
     else:
@@ -95,10 +105,24 @@ def design_pid(ctx: EpisodeContext, integral: bool, settings: PIDSettings | None
     return pid_by_pole_placement(J, c, b, wn, zeta, settings.integrator_pole_ratio) if integral else pd
 
 
+def lab_gains(spec: PlantSpec) -> PIDGains:
+    """The PD gains of the plant's own lab controller, ν = kp·kv·(r - q) - kv·q̇ (EMPS eq. 6): kp·kv per
+    unit of position, kv per unit/s (V per m, V·s/m)."""
+    doc = spec.document
+    kp, kv = doc.lab_kp_per_s, doc.lab_kv_v_per_m_s
+    return PIDGains(kp=kp * kv, ki=0.0, kd=kv)
+
+
+def has_lab_controller(spec: PlantSpec) -> bool:
+    """Whether the plant's document gives a lab controller (EMPS eq. 6)."""
+    return hasattr(spec.document, "lab_kp_per_s")
+
+
 class PID(PhysicalController):
     """u = kp·e + ki·∫e + kd·d(-y)/dt, e = r - y: derivative on the measurement (no set-point kick),
-    backward differences at T_s; conditional-integration anti-windup (the integrator holds while the
-    command is saturated and the error would push it further)."""
+    backward differences at T_s (or, on a plant whose loop is its lab controller, the lab's velocity
+    FIR: EMPS §2.2's 2-tap average, i.e. (y(k) - y(k-2))/(2 T_s)); conditional-integration anti-windup
+    (the integrator holds while the command is saturated and the error would push it further)."""
 
     name: ClassVar[str] = "PID"
     integral: ClassVar[bool] = True
@@ -108,12 +132,24 @@ class PID(PhysicalController):
 
     def start(self, ctx: EpisodeContext) -> None:
         self.gains = design_pid(ctx, self.integral, self.settings)
-        self.i_term, self.y_prev = 0.0, None
+        lab = self.settings.loop(ctx.plant).lab_controller
+        self.fir = ctx.plant.document.lab_fir if lab else None
+        self.i_term, self.y_prev, self.qf_prev = 0.0, None, None
+
+    def loop_velocity(self, y: float) -> float:
+        """The loop's velocity estimate (units/s) from this reading and the previous ones."""
+        if self.fir is not None:  # qf(k) = a·y(k) + b·y(k-1); v = (qf(k) - qf(k-1))/h
+            prev = y if self.y_prev is None else self.y_prev
+            qf = self.fir[0] * y + self.fir[1] * prev
+            v = 0.0 if self.qf_prev is None else (qf - self.qf_prev) / self.h
+            self.qf_prev = qf
+            return v
+        return 0.0 if self.y_prev is None else (y - self.y_prev) / self.h
 
     def command(self, y: float, r: float) -> float:
         g, h, limit = self.gains, self.h, self.sc.action_scale
         e = r - y
-        d = 0.0 if self.y_prev is None else -(y - self.y_prev) / h
+        d = -self.loop_velocity(y)
         self.y_prev = y
         u = g.kp * e + self.i_term + g.kd * d
         if abs(u) < limit or u * e < 0:
@@ -130,3 +166,22 @@ class PD(PID):
     name: ClassVar[str] = "PD"
     sensor_kinds: ClassVar[tuple[str, ...]] = ("encoder",)
     integral: ClassVar[bool] = False
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        if self.name == "PD" and self.settings.loop(scenario.spec).lab_controller:
+            return "the plant's PD loop is its lab controller: see LabPD"
+        return super().why_not(scenario)
+
+
+class LabPD(PD):
+    """The plant's own lab controller, as the lab ran it: the EMPS PD of eq. (6) with the 2-tap FIR
+    velocity of §2.2, ν = kp·kv·(r - q) - kv·q̇m, saturated at the action scale (±10 V)."""
+
+    name: ClassVar[str] = "LabPD"
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        if not has_lab_controller(scenario.spec):
+            return f"plant {scenario.spec.name} has no lab controller in its document"
+        if not self.settings.loop(scenario.spec).lab_controller:
+            return f"controllers.yaml pid.loops.{scenario.spec.name} is not lab_controller: true"
+        return super(PD, self).why_not(scenario)

@@ -55,6 +55,9 @@ class IdimSettings:
         return max(1, round(0.8 * 0.5 / period / self.decimate_band_hz))
 
 
+PUBLISHED = IdimSettings()  # the processing of the published numbers
+
+
 def matlab_filtfilt(b: np.ndarray, a: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Zero-phase filtering as MATLAB's filtfilt: odd reflection of 3·(n-1) samples at each end, where n
     is the filter's length (scipy's default pads 3·n)."""

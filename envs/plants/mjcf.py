@@ -4,11 +4,18 @@ from __future__ import annotations
 
 import math
 
-from .spec import PlantSpec
+from .spec import JointSpec, PlantSpec
 
-# Each shaft body carries a tiny explicit inertia (MuJoCo needs one on moving bodies) and visual geoms
-# with no mass; the joint's armature is the shaft inertia minus it, so the total is the preset's J.
+# Each shaft (or carriage) body carries a tiny explicit inertia (MuJoCo needs one on moving bodies) and
+# visual geoms with no mass; the joint's armature is the shaft inertia (or carriage mass) minus what the
+# body adds to its dof (its rotational inertia for a hinge, its mass for a slide), so the total is the
+# preset's J (or M).
 VISUAL_MASS_KG, VISUAL_INERTIA = 1e-9, 1e-12  # kg, kg·m²
+
+
+def body_share(j: JointSpec) -> float:
+    """What the joint's body adds to its dof's inertia: kg·m² for a hinge, kg for a slide."""
+    return VISUAL_MASS_KG if j.kind == "slide" else VISUAL_INERTIA
 
 
 def friction_joints(spec: PlantSpec) -> list[str]:
@@ -26,14 +33,19 @@ def to_mjcf(spec: PlantSpec) -> str:
         coulomb = j.friction is not None and spec.friction_model == "coulomb"
         fl = j.friction.fc if coulomb else 0.0
         damping = j.viscous + j.friction.sigma2 if coulomb else j.viscous  # Coulomb + viscous
+        slide = j.kind == "slide"
+        shape = (
+            '<geom type="box" size="0.04 0.03 0.02" mass="0" rgba="0.6 0.6 0.7 1"/>'
+            '<geom type="box" pos="0 0 0.022" size="0.01 0.03 0.002" mass="0" rgba="0.9 0.3 0.2 1"/>'
+            if slide
+            else '<geom type="cylinder" size="0.08 0.01" mass="0" rgba="0.6 0.6 0.7 1"/>'
+            '<geom type="box" pos="0.05 0 0.012" size="0.03 0.005 0.002" mass="0" rgba="0.9 0.3 0.2 1"/>'
+        )
         bodies.append(
-            f'<body name="{j.name}" pos="{x} 0 0"><joint name="{j.name}" type="hinge" axis="0 0 1" '
-            f'armature="{j.inertia - VISUAL_INERTIA!r}" damping="{damping!r}" frictionloss="{fl!r}"/>'
-            f'<inertial pos="0 0 0" mass="{VISUAL_MASS_KG!r}" diaginertia="{VISUAL_INERTIA!r} '
-            f'{VISUAL_INERTIA!r} {VISUAL_INERTIA!r}"/>'
-            f'<geom type="cylinder" size="0.08 0.01" mass="0" rgba="0.6 0.6 0.7 1"/>'
-            f'<geom type="box" pos="0.05 0 0.012" size="0.03 0.005 0.002" mass="0" '
-            f'rgba="0.9 0.3 0.2 1"/></body>'
+            f'<body name="{j.name}" pos="{x} 0 0"><joint name="{j.name}" type="{j.kind}" '
+            f'axis="{"1 0 0" if slide else "0 0 1"}" armature="{j.inertia - body_share(j)!r}" '
+            f'damping="{damping!r}" frictionloss="{fl!r}"/><inertial pos="0 0 0" mass="{VISUAL_MASS_KG!r}" '
+            f'diaginertia="{VISUAL_INERTIA!r} {VISUAL_INERTIA!r} {VISUAL_INERTIA!r}"/>{shape}</body>'
         )
     actuators.append(
         f'<motor name="drive" joint="{spec.actuator_joint}" gear="{spec.actuator_gain!r}" ctrllimited="true" '

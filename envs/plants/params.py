@@ -15,7 +15,7 @@ import numpy as np
 from ..config import ConfigError, nonneg, number, positive
 from ..friction import LuGreParams, check_numerics
 from ..sampler import stream
-from .mjcf import VISUAL_INERTIA, friction_joints
+from .mjcf import body_share, friction_joints
 from .spec import RANDOMIZATION_KEYS, PlantSpec
 
 # keys drawn once per frictional joint
@@ -232,8 +232,8 @@ def _fields(spec: PlantSpec, idx: ModelIndex, p: EpisodeParams) -> dict[str, lis
             "tendon_damping",
         )
     }
-    for d, J, c in zip(idx.dofs, p.inertia, p.viscous, strict=True):
-        w["dof_armature"].append(((d,), J - VISUAL_INERTIA))
+    for d, j, J, c in zip(idx.dofs, spec.joints, p.inertia, p.viscous, strict=True):
+        w["dof_armature"].append(((d,), J - body_share(j)))
         w["dof_damping"].append(((d,), c))
     fdofs = [idx.dofs[spec.joint_index(n)] for n in friction_joints(spec)]
     for a, d, f in zip(idx.friction, fdofs, p.friction, strict=True):

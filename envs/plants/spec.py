@@ -20,15 +20,24 @@ import numpy as np
 from ..config import ConfigError, Node
 from ..friction import LuGreParams
 
+JOINT_KINDS = ("hinge", "slide")
+
 
 @dataclass(frozen=True)
 class JointSpec:
-    """One rotating shaft. inertia (kg·m²), viscous (N·m·s/rad, outside friction), friction (None: none)."""
+    """One rotating shaft (kind "hinge": inertia kg·m², viscous N·m·s/rad, friction in N·m and rad) or one
+    carriage in translation (kind "slide": the same fields in kg, N·s/m, N and m). viscous is outside the
+    friction element; friction None: none. Every other quantity of the plant follows its joint's unit."""
 
     name: str
     inertia: float
     viscous: float = 0.0
     friction: LuGreParams | None = None
+    kind: str = "hinge"
+
+    def __post_init__(self) -> None:
+        if self.kind not in JOINT_KINDS:
+            raise ConfigError(f"joint[{self.name}].kind", f"{self.kind!r} not in {list(JOINT_KINDS)}")
 
 
 @dataclass(frozen=True)
@@ -70,7 +79,8 @@ class SensorSpec:
 @dataclass(frozen=True)
 class Envelope:
     """What a task may ask of the plant's joints: |angle| (rad), |speed| (rad/s), |acceleration|
-    (rad/s²). Scenario references and initial states outside it are refused (each plant says why)."""
+    (rad/s²), or for a slide joint the same in m, m/s, m/s². Scenario references and initial states
+    outside it are refused (each plant says why)."""
 
     position_rad: float
     speed_rad_s: float
@@ -84,7 +94,7 @@ class PlantSpec:
     name: str
     joints: tuple[JointSpec, ...]
     actuator_joint: str
-    actuator_gain: float  # N·m per command unit
+    actuator_gain: float  # N·m (slide joint: N) per command unit
     command_limit: float  # |command| limit (command units)
     command_unit: str  # "V" or "N·m"
     timestep: float  # s
@@ -99,7 +109,7 @@ class PlantSpec:
     rate_feedback: float = 0.0  # N·m·s/rad, analog velocity feedback at physics rate (Kang §4)
     belt_timeconst: float = 0.0  # s, equality solref time constant
     rate_loop: bool = False  # the rig has an analog rate-feedback loop (a velocity actuator, Kang §4)
-    disturbance_joint: str | None = None  # joint of the rig's load-side disturbance motor (torque, N·m)
+    disturbance_joint: str | None = None  # joint of the rig's load-side disturbance motor (N·m, or N)
     randomization: dict[str, tuple[float, float]] = field(default_factory=dict)
     document: Any = None  # the plant module's typed document data (values the checks and designs use)
     envelope: Envelope = Envelope(1e3, 1e3, 1e5)  # each plant module gives its own
