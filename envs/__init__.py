@@ -1,9 +1,9 @@
 """The simulated world (frictiongym.envs): plants, friction, sensors, sampling, scenarios, metrics, envs.
 
-Importing this package registers the Gymnasium ids frictiongym/M220-v0, frictiongym/FlexibleServo-v0 and
-frictiongym/KangRobot-v0 (each takes scenario= and keyword overrides). gym.make_vec(id, num_envs) gives
-the batched ServoVectorEnv (its default vector_entry_point mode); "sync" and "async" give Gymnasium's
-vector envs over gym.make, with the same episodes.
+Importing this package registers the Gymnasium ids frictiongym/M220-v0, frictiongym/FlexibleServo-v0,
+frictiongym/KangRobot-v0 and frictiongym/EMPS-v0 (each takes scenario= and keyword overrides).
+gym.make_vec(id, num_envs) gives the batched ServoVectorEnv (its default vector_entry_point mode); "sync"
+and "async" give Gymnasium's vector envs over gym.make, with the same episodes.
 
 Each spec's max_episode_steps is the episode length of the scenario the call chooses (the default
 scenario's when read from the registry), so TimeLimit, TimeAwareObservation and anything reading
@@ -30,6 +30,7 @@ ENV_IDS = {  # id -> (single env, vector env over mujoco.batch for gym.make_vec)
     "frictiongym/M220-v0": ("servo_env:M220Env", "vector:m220_vector"),
     "frictiongym/FlexibleServo-v0": ("servo_env:FlexibleServoEnv", "vector:flexible_servo_vector"),
     "frictiongym/KangRobot-v0": ("servo_env:KangRobotEnv", "vector:kang_robot_vector"),
+    "frictiongym/EMPS-v0": ("servo_env:EMPSEnv", "vector:emps_vector"),
 }
 _MAKERS = (registration.make.__code__, registration.make_vec.__code__)
 

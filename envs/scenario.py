@@ -56,9 +56,10 @@ class Reference:
     - trapezoid: point-to-point moves from offset, schedule of [t_start, target], each with a trapezoidal
       velocity profile limited by max_velocity and max_acceleration (units per s, per s²), finished
       before the next starts.
-    - recorded: a measured signal replayed, scale·x(t) linearly interpolated between its samples (t from
-      the recording's first sample; the last value holds after its end): `signal` of the log `file`
-      (envs/recorded.py: a .mat or CSV, a path relative to configs/ or absolute), time in `time_signal`.
+    - recorded: a measured signal replayed, scale·x(t), each sample held until the next (t from the
+      recording's first sample; a log at the control rate replays sample for sample): `signal` of the log
+      `file` (envs/recorded.py: a .mat or CSV, a path relative to configs/ or absolute), time in
+      `time_signal`.
     """
 
     type: str
@@ -114,9 +115,10 @@ class Reference:
             return values[np.searchsorted(starts, t + 1e-12, side="right")]
         if self.type == "trapezoid":
             return self._moves(t)
-        if self.type == "recorded":
+        if self.type == "recorded":  # the last sample at or before t (clock jitter up to 1 % of a period)
             ts, x = self.samples()
-            return np.interp(t, ts, x)
+            slack = 0.01 * float(np.median(np.diff(ts)))
+            return x[np.clip(np.searchsorted(ts, t + slack, side="right") - 1, 0, len(x) - 1)]
         if self.type == "ramps":
             starts = np.array([s for s, _ in self.schedule])
             rates = np.array([r for _, r in self.schedule])
@@ -335,6 +337,19 @@ def _ranges(init: Node, key: str, nv: int, bound: float) -> np.ndarray:
     )
 
 
+def _plant(c: Node) -> str:
+    """The scenario's plant: a preset of configs/plants, or the path of a preset file (a lab's own drive,
+    e.g. the plant.yaml that scripts/identify.py idim drafts)."""
+    plant = c["plant"]
+    if isinstance(plant, str) and (
+        plant in plant_names() or (plant.endswith(".yaml") and Path(plant).is_file())
+    ):
+        return plant
+    raise c.error(
+        "plant", f"{plant!r} is neither a preset of configs/plants {plant_names()} nor a preset file"
+    )
+
+
 def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwargs: Any) -> Scenario:
     """Load a scenario by name or path; `overrides` deep-merges YAML keys (a reference with a new type
     replaces the scenario's), kwargs set top-level keys (e.g. control_period_s=0.04, randomize=True,
@@ -365,7 +380,7 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
         plant_ov["sampling"] = {**plant_ov.get("sampling", {}), "control_period_s": period}
     randomize = c.boolean("randomize")
     spec = plant_spec(
-        c.choice("plant", plant_names()),
+        _plant(c),
         plant_ov,
         c.choice("friction_model", FRICTION_MODELS),
         check_ranges=randomize,  # ranges that are never drawn from are not checked

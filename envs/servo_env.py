@@ -291,3 +291,13 @@ class KangRobotEnv(ServoEnv):
     )
     default_scenario = "kang_regulation"
     plant = "kang_robot"
+
+
+class EMPSEnv(ServoEnv):
+    __doc__ = (
+        "The EMPS prismatic drive (Janot, Gautier, Brunot 2019), identified from its measurements: sensor "
+        "encoder (m, 50 nm); command in V (±10 V, gτ = 35.15 N/V). Version history: v0, first release."
+        + OBSERVATION_DOC
+    )
+    default_scenario = "emps_tracking"
+    plant = "emps"

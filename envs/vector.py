@@ -19,7 +19,7 @@ from .core import ServoCore, check_action, check_options
 from .metrics import defined_metrics
 from .sampler import check_seed
 from .scenario import load_scenario
-from .servo_env import FlexibleServoEnv, JsonSafeSpec, KangRobotEnv, M220Env, ServoEnv, check_plant
+from .servo_env import EMPSEnv, FlexibleServoEnv, JsonSafeSpec, KangRobotEnv, M220Env, ServoEnv, check_plant
 from .step import OBS_CLIP
 
 
@@ -302,3 +302,4 @@ def _vector_entry(env_class: type[ServoEnv]):
 m220_vector = _vector_entry(M220Env)
 flexible_servo_vector = _vector_entry(FlexibleServoEnv)
 kang_robot_vector = _vector_entry(KangRobotEnv)
+emps_vector = _vector_entry(EMPSEnv)

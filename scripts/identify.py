@@ -6,6 +6,16 @@
     python scripts/identify.py lugre    (--csv HOLDS [--breakaway CSV THRESHOLD]
                                          [--presliding CSV AMPLITUDE HZ] | --simulate PLANT ...) [--out DIR]
     python scripts/identify.py recovery [--draws 20] [--out DIR]
+    python scripts/identify.py idim     [--csv ESTIMATION [--validation LOG]] [--delays 0 1] [--out DIR]
+    python scripts/identify.py check    [--csv LOG --plant PRESET] [--controller LabPD] [--out DIR]
+
+idim: inverse-model identification (IDIM-LS, EMPS §3) of a drive from closed-loop logs: every friction
+structure fitted on the estimation log, cross-tested on the validation log; writes DIR/report.md,
+result.json and, for a linear drive, plant.yaml (a draft preset). check: the simulated drive (a plant
+preset, default the EMPS) in closed loop under its lab controller against a measured log, and open loop
+on its ν. Without --csv both use the EMPS logs (configs/published/emps/). Drive logs: a .mat with the EMPS
+names, or a CSV with time_s, position_m|_rad|_deg, reference_*, command_V[, disturbance_V] and
+'# drive_gain_n_per_v = ...' (docs/emps.md).
 
 CSV logs: '#' provenance lines, then columns time_s, command_V or command_Nm, position_rad|position_deg
 and/or speed_rad_s|speed_deg_s, and for holds/ramps a segment column (one per hold or ramp) and optionally
@@ -28,7 +38,7 @@ from frictiongym.envs.records import atomic_text
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("kind", choices=["step", "friction", "lugre", "recovery"])
+    ap.add_argument("kind", choices=["step", "friction", "lugre", "recovery", "idim", "check"])
     src = ap.add_mutually_exclusive_group()
     src.add_argument("--csv", type=Path, help="a hardware (or any) log: a step, or speed holds")
     src.add_argument("--simulate", choices=plant_names(), help="run the experiments on this simulated plant")
@@ -46,6 +56,10 @@ def main(argv: list[str] | None = None) -> int:
         "--presliding", nargs=3, metavar=("CSV", "AMPLITUDE", "HZ"), help="presliding log and its input"
     )
     ap.add_argument("--draws", type=int, default=20, help="recovery: randomised plants per plant")
+    ap.add_argument("--validation", type=Path, help="idim: the cross-test log (a drive log)")
+    ap.add_argument("--delays", type=int, nargs="+", default=[0, 1], help="idim: force shifts (samples)")
+    ap.add_argument("--plant", help="check: the plant preset to simulate (configs/plants name)")
+    ap.add_argument("--controller", default="LabPD", help="check: the controller of the closed loop")
     ap.add_argument("--out", type=Path, default=Path("out/identify"))
     args = ap.parse_args(argv)
     try:
@@ -55,6 +69,8 @@ def main(argv: list[str] | None = None) -> int:
             atomic_text(args.out / "recovery.md", table)
             print(table)
             return 0
+        if args.kind in ("idim", "check"):
+            return _lab(args)
         if args.document and args.kind == "lugre":
             ap.error("--document holds a step and a Coulomb + viscous table: use step or friction")
         text = run(
@@ -75,6 +91,23 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    print(text)
+    return 0
+
+
+def _lab(args: argparse.Namespace) -> int:
+    """The drive-log sub-commands (frictiongym.agents.lab.workflow)."""
+    from frictiongym.agents.lab import workflow
+
+    if args.kind == "idim":
+        r = workflow.identify(workflow.IdentifyOptions(args.csv, args.validation, delays=tuple(args.delays)))
+        for p in workflow.write_identification(r, args.out):
+            print(f"wrote {p}")
+        return 0
+    comparisons = workflow.check(args.csv, args.plant, args.controller)
+    text = workflow.check_markdown(comparisons)
+    args.out.mkdir(parents=True, exist_ok=True)
+    atomic_text(args.out / "check.md", text + "\n")
     print(text)
     return 0
 

@@ -11,7 +11,7 @@ from frictiongym.envs.plants.params import EpisodeParams
 
 
 def test_presets_listed_and_load():
-    assert plant_names() == ["flexible_servo", "kang_robot", "m220"]
+    assert plant_names() == ["emps", "flexible_servo", "kang_robot", "m220"]
     for name in plant_names():
         assert plant_spec(name).name == name
 

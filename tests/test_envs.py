@@ -11,21 +11,16 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import frictiongym.envs  # noqa: F401  (registers the ids)
+from frictiongym.envs import env_id
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.scenario import load_scenario, scenario_names
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.suites import load_suite, suite_names
 from frictiongym.envs.vector import ServoVectorEnv, make_sb3_vec_env
 
-PLANT_ID = {
-    "kang_robot": "frictiongym/KangRobot-v0",
-    "m220": "frictiongym/M220-v0",
-    "flexible_servo": "frictiongym/FlexibleServo-v0",
-}
-
 
 def make(scenario, **kw):
-    return gym.make(PLANT_ID[load_scenario(scenario).spec.name], scenario=scenario, **kw)
+    return gym.make(env_id(load_scenario(scenario).spec.name), scenario=scenario, **kw)
 
 
 @pytest.mark.parametrize("scenario", scenario_names())

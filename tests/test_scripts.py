@@ -68,7 +68,7 @@ def test_bench_physics_prints_a_ratio_per_plant():
     )
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.strip().splitlines()[1:]
-    assert {ln.split()[0] for ln in lines} == {"kang_robot", "flexible_servo", "m220"}
+    assert {ln.split()[0] for ln in lines} == {"kang_robot", "flexible_servo", "m220", "emps"}
     assert all(0.1 < float(ln.split()[-1]) < 10 for ln in lines)
 
 

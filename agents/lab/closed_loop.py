@@ -12,7 +12,7 @@ in §3.1 against the simulated states, the force gτ·ν, all from the 50th samp
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import signal
@@ -25,6 +25,7 @@ from .drive_log import DriveLog, emps_log
 from .idim import PUBLISHED, IdimSettings, central_difference, matlab_filtfilt, relative_error
 
 SIGNALS = ("position", "velocity", "acceleration", "force")
+ARRAYS = ("t", "position", "reference", "command", "disturbance")  # DriveLog's per-sample fields
 SCENARIOS = {"estimation": "emps_tracking", "validation": "emps_pulses"}  # the log each scenario replays
 
 
@@ -59,35 +60,52 @@ def measured_states(log: DriveLog, settings: IdimSettings = PUBLISHED) -> dict[s
 def compare(
     name: str, log: DriveLog, simulated: dict[str, np.ndarray], settings: IdimSettings = PUBLISHED
 ) -> Comparison:
-    """The relative errors of simulated against measured signals (the same length as the log)."""
+    """The relative errors of simulated against measured signals (the same length as the log; a signal
+    the simulation does not give, e.g. the force of an open-loop run, has error nan)."""
     meas = measured_states(log, settings)
     keep = slice(settings.first_sample - 1, None)
     m = {k: meas[k][keep] for k in SIGNALS}
-    s = {k: np.asarray(simulated[k])[keep] for k in SIGNALS}
-    errors = {k: relative_error(m[k], s[k]) for k in SIGNALS}
+    s = {k: np.asarray(simulated[k])[keep] for k in SIGNALS if k in simulated}
+    errors = {k: relative_error(m[k], s[k]) if k in s else float("nan") for k in SIGNALS}
     rmse = float(np.sqrt(np.mean((log.position[keep] - s["position"]) ** 2)))
     return Comparison(name, log.t[keep], m, s, errors, rmse)
 
 
-def closed_loop(which: str, controller: str = "LabPD", overrides: dict | None = None) -> Comparison:
-    """The benchmark scenario that replays log `which` ('estimation' or 'validation'), on the nominal
-    plant under `controller`, against that log. The simulated force is gτ·(ν + pulses): the command the
-    controller computed at each sample (it acts one sample later, the rig's delay) plus the injected
-    pulse, as the logged ν includes it. overrides: scenario overrides (e.g. another friction model)."""
+def closed_loop(
+    which: str | DriveLog,
+    controller: str = "LabPD",
+    overrides: dict | None = None,
+    plant: str | None = None,
+) -> Comparison:
+    """A log replayed in closed loop on the nominal plant under `controller`, against that log: the EMPS
+    'estimation' or 'validation' set through its own benchmark scenario (emps_tracking, emps_pulses),
+    or any drive log through emps_tracking with the log's reference and disturbance (DriveLog.replay)
+    on preset `plant` (a configs/plants name; default the scenario's). The simulated force is
+    gτ·(ν + disturbance): the command the controller computed at each sample plus the injected part,
+    as the logged ν includes it. overrides: further scenario overrides (e.g. another friction model)."""
     from ..evaluate import run_episode
     from ..registry import make
 
-    log = emps_log(which)
+    if isinstance(which, str):
+        log, scenario, ov = emps_log(which), SCENARIOS[which], {}
+    else:
+        log, scenario, ov = which, SCENARIOS["estimation"], which.replay()
+        q0 = float(log.position[0])
+        ov["initial_state"] = {"qpos": [[q0, q0]], "qvel": [[0.0, 0.0]]}  # the log's start, at rest
+    if plant is not None:
+        ov["plant"] = plant
+    ov.update(overrides or {})
     n = len(log.t) - 1  # the commands of samples 0..n-1 are logged
     res = run_episode(
         make(controller),
-        Episode(SCENARIOS[which], 0, False),
+        Episode(scenario, 0, False),
         keep_log=True,
-        episode_s=n * log.period,
-        overrides=overrides,
+        episode_s=round(n * log.period, 9),
+        overrides=ov or None,
+        control_period_s=log.period if not isinstance(which, str) else None,
     )
     g = res.log
-    gain = _nominal().actuator_gain
+    gain = _nominal(plant).actuator_gain
     v = g["velocity"][:n]
     sim = {
         "position": g["output"][:n],
@@ -95,27 +113,21 @@ def closed_loop(which: str, controller: str = "LabPD", overrides: dict | None = 
         "acceleration": central_difference(v, log.period),
         "force": gain * (g["command"][1 : n + 1] + log.disturbance[:n]),
     }
-    trimmed = DriveLog(
-        log.t[:n],
-        log.position[:n],
-        log.reference[:n],
-        log.command[:n],
-        log.disturbance[:n],
-        log.drive_gain,
-        log.unit,
-        log.source,
-        log.kp,
-        log.kv,
-    )
-    return compare(which, trimmed, sim)
+    name = which if isinstance(which, str) else log.source
+    return compare(name, replace(log, **{k: getattr(log, k)[:n] for k in ARRAYS}), sim)
 
 
-def open_loop(which: str, spec: PlantSpec | None = None) -> Comparison:
-    """The common benchmark protocol's simulation: the plant driven open loop by the measured ν (which
-    includes the pulses), from the measured initial position and filtered velocity. The integrator makes
-    this a hard test: position errors accumulate."""
-    log = emps_log(which)
-    sim = PlantSim(spec or _nominal())
+def open_loop(which: str | DriveLog, plant: str | None = None) -> Comparison:
+    """The common benchmark protocol's simulation: the plant (preset `plant`, default the EMPS) driven
+    open loop by the measured ν (which includes the pulses), from the measured initial position and
+    filtered velocity. The integrator makes this a hard test: position errors accumulate."""
+    log = emps_log(which) if isinstance(which, str) else which
+    spec = _nominal(plant)
+    if abs(spec.control_period - log.period) > 1e-3 * log.period:
+        from frictiongym.envs.plants import plant_spec
+
+        spec = plant_spec(plant or "emps", {"sampling": {"control_period_s": round(log.period, 9)}})
+    sim = PlantSim(spec)
     meas = measured_states(log)
     sim.reset(qpos=[log.position[0]], qvel=[meas["velocity"][0]])
     q, v = np.empty(len(log.t)), np.empty(len(log.t))
@@ -123,11 +135,11 @@ def open_loop(which: str, spec: PlantSpec | None = None) -> Comparison:
     for k in range(len(log.t) - 1):
         r = sim.step(float(log.command[k]))
         q[k + 1], v[k + 1] = r.qpos[0], r.qvel[0]
-    s = {"position": q, "velocity": v, "acceleration": central_difference(v, log.period), "force": log.force}
-    return compare(which, log, s)
+    s = {"position": q, "velocity": v, "acceleration": central_difference(v, log.period)}  # ν is the input
+    return compare(which if isinstance(which, str) else log.source, log, s)
 
 
-def _nominal() -> PlantSpec:
+def _nominal(plant: str | None = None) -> PlantSpec:
     from frictiongym.envs.plants import plant_spec
 
-    return plant_spec("emps")
+    return plant_spec(plant or "emps")

@@ -45,6 +45,35 @@ class DriveLog:
     kp: float | None = None
     kv: float | None = None
     provenance: tuple[str, ...] = ()
+    columns: tuple[tuple[str, str], ...] = ()  # (role, name in the file): time, reference, disturbance
+
+    def column(self, role: str) -> str | None:
+        """The file's name of the signal with this role (None if the log has none)."""
+        return dict(self.columns).get(role)
+
+    def replay(self) -> dict:
+        """Scenario overrides that replay this log: its reference and, if it has one, its injected
+        disturbance as a force (drive gain x volts) on the load (envs/scenario.py, type recorded)."""
+        t, ref = self.column("time"), self.column("reference") or ""
+        scale = POSITION_UNITS[ref[10:]] if ref.startswith("reference_") else 1.0  # CSV unit -> SI
+        out: dict = {
+            "reference": {
+                "type": "recorded",
+                "file": self.source,
+                "signal": ref,
+                "time_signal": t,
+                "scale": scale,
+            }
+        }
+        if self.column("disturbance") is not None and np.any(self.disturbance):
+            out["disturbance"] = {
+                "type": "recorded",
+                "file": self.source,
+                "signal": self.column("disturbance"),
+                "time_signal": t,
+                "scale": self.drive_gain,
+            }
+        return out
 
     @property
     def period(self) -> float:
@@ -84,6 +113,8 @@ def read_drive_log(path: str | Path) -> DriveLog:
                 kp=rec.scalars.get("kp"),
                 kv=rec.scalars.get("kv"),
                 provenance=rec.provenance,
+                columns=(("time", "t"), ("reference", "qg"))
+                + ((("disturbance", "pulses_N"),) if "pulses_N" in rec.signals else ()),
             )
         )
     pos = [c for c in rec.signals if c.startswith("position_") and c[9:] in POSITION_UNITS]
@@ -109,6 +140,8 @@ def read_drive_log(path: str | Path) -> DriveLog:
             kp=rec.scalars.get("kp_per_s"),
             kv=rec.scalars.get("kv_v_per_unit_s"),
             provenance=rec.provenance,
+            columns=(("time", "time_s"), ("reference", ref[0]))
+            + ((("disturbance", "disturbance_V"),) if "disturbance_V" in rec.signals else ()),
         )
     )
 

@@ -89,6 +89,7 @@ def sections() -> list[Section]:
         kang1998.BASELINES,
         wallenborg1987.BASELINES,
         janot2019.IDIM,
+        janot2019.SIMULATION,
     ]
 
 

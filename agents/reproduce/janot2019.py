@@ -1,14 +1,20 @@
 """The EMPS benchmark (Janot, Gautier, Brunot 2019) on its real measurements: the IDIM-LS estimates of §3.4
 (symmetric friction), its cross-test on the pulses set, and the asymmetric fit of §4.2, recomputed from
 the data by frictiongym.agents.lab.idim; then which friction structure of the suite explains the drive
-best (fitted on the estimation set only, cross-tested on the validation set)."""
+best (fitted on the estimation set only, cross-tested on the validation set); and the simulated drive
+(configs/plants/emps.yaml) in closed loop against both measured logs (§3.5)."""
 
 from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
 
-from ..lab import idim
+import numpy as np
+
+from frictiongym.envs.plants import plant_spec
+
+from ..lab import closed_loop, idim
+from ..lab.drive_log import emps_log
 from . import Section, published_node, row, save_figure
 
 # The published estimates are printed to 4 decimals: 1e-4 absolute is twice their rounding. The relative
@@ -144,3 +150,107 @@ def findings(rows: tuple[idim.ModelRow, ...], _: list[dict]) -> str:
 
 
 IDIM = Section("emps", "emps2019", idim.emps_table, idim_rows, figures, findings)
+
+
+# ------------------------------------------------------------------------ simulation vs measurement
+def simulation_runs() -> dict[str, closed_loop.Comparison]:
+    """The nominal EMPS plant in closed loop under the lab PD on both logs, and open loop on ν."""
+    out = {f"closed.{w}": closed_loop.closed_loop(w) for w in closed_loop.SCENARIOS}
+    out.update({f"open.{w}": closed_loop.open_loop(w) for w in closed_loop.SCENARIOS})
+    return out
+
+
+SIM_NOTE = "pass: at least as close to the measurement as the description's simulation (§3.5)"
+
+
+def simulation_rows(runs: dict[str, closed_loop.Comparison]) -> Iterator[dict]:
+    pub = published_node("emps2019").section("simulation")
+    for which in closed_loop.SCENARIOS:
+        printed = pub.section(f"{which}_set_relative_error_pct")
+        c = runs[f"closed.{which}"]
+        for sig in closed_loop.SIGNALS:
+            doc, got = printed.number(sig), c.relative_error_pct[sig]
+            yield row(f"emps.sim.{which}.{sig}_pct", doc, got, float("nan"), note=SIM_NOTE, passed=got <= doc)
+    v = runs["open.validation"]
+    yield row(
+        "emps.protocol.test_rmse_mm",
+        float("nan"),
+        v.position_rmse_m * 1e3,
+        float("nan"),
+        note="open loop on the measured ν, DATA_EMPS_PULSES (benchmark protocol); none printed: reported",
+        passed=bool(np.isfinite(v.position_rmse_m)),
+    )
+
+
+def simulation_figures(runs: dict[str, closed_loop.Comparison], out: Path) -> list[str]:
+    """Tracking error and force over time, measured against simulated, on both logs."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(2, 2, figsize=(11, 6), sharex=True)
+    for j, which in enumerate(closed_loop.SCENARIOS):
+        c = runs[f"closed.{which}"]
+        log = emps_log(which)
+        keep = slice(len(log.t) - 1 - len(c.t), len(log.t) - 1)
+        ref = log.reference[keep]
+        ax[0, j].plot(c.t, 1e3 * (ref - log.position[keep]), "k", lw=0.8, label="measured")
+        ax[0, j].plot(c.t, 1e3 * (ref - c.simulated["position"]), "r", lw=0.6, label="simulated")
+        ax[0, j].set_ylabel("tracking error q_r - q (mm)")
+        ax[0, j].set_title(f"{which} set ({closed_loop.SCENARIOS[which]})")
+        ax[1, j].plot(c.t, c.measured["force"], "k", lw=0.8, label="measured gτ·ν")
+        ax[1, j].plot(
+            c.t, c.simulated["force"], "r", lw=0.6, label=f"simulated ({c.relative_error_pct['force']:.1f} %)"
+        )
+        ax[1, j].set_ylabel("force (N)")
+        ax[1, j].set_xlabel("time (s)")
+        for a in ax[:, j]:
+            a.legend(fontsize=8, loc="upper right")
+    return [save_figure(fig, out, "emps_sim_vs_measurement.png")]
+
+
+def simulation_findings(runs: dict[str, closed_loop.Comparison], rows: list[dict]) -> str:
+    """What the comparison says (markdown)."""
+    lines = [
+        "## EMPS: the simulated drive against its measurement",
+        "",
+        "The benchmark scenarios (emps_tracking, emps_pulses) with the nominal plant under the lab PD, "
+        "driven by the measured reference (and pulses); relative errors (%) of EMPS eq. (11) as §3.5 "
+        "computes them.",
+        "",
+        "| log | signal | description's simulation | this simulator |",
+        "|---|---|---|---|",
+    ]
+    for r in rows:
+        if r["id"].startswith("emps.sim."):
+            _, _, which, sig = r["id"].split(".")
+            lines.append(f"| {which} | {sig[:-4]} | {r['document']:.4g} | {r['simulated']:.4g} |")
+    op = {w: runs[f"open.{w}"] for w in closed_loop.SCENARIOS}
+    cl = {w: runs[f"closed.{w}"] for w in closed_loop.SCENARIOS}
+    counts = plant_spec("emps").sensor("encoder").resolution  # m per count
+    e = cl["estimation"]
+    fast = {"pos": e.simulated["velocity"] > 0.1, "neg": e.simulated["velocity"] < -0.1}
+    bias = {k: float(np.mean((e.measured["force"] - e.simulated["force"])[m])) for k, m in fast.items()}
+    lines += [
+        "",
+        f"- Closed loop, position RMSE against the raw measured position: "
+        f"{cl['estimation'].position_rmse_m * 1e6:.2f} µm (estimation) and "
+        f"{cl['validation'].position_rmse_m * 1e6:.2f} µm (validation): "
+        f"{cl['estimation'].position_rmse_m / counts:.0f} and "
+        f"{cl['validation'].position_rmse_m / counts:.0f} encoder counts.",
+        f"- The measurement's force at steady speed is off the simulator's by {bias['pos']:+.1f} N (moving "
+        f"positive) and {bias['neg']:+.1f} N (negative), above 0.1 m/s on the estimation set: the two "
+        "viscous slopes of the asymmetric fit (§4.2, 166.7 / 240.4 N·s/m), which the simulator's one "
+        "slope (MuJoCo's LuGre element is symmetric) cannot follow. It is reported, not tuned away.",
+        f"- Open loop on the measured ν (the common protocol: train on DATA_EMPS, test on DATA_EMPS_PULSES): "
+        f"position RMSE {op['estimation'].position_rmse_m * 1e3:.2f} mm (estimation), "
+        f"**{op['validation'].position_rmse_m * 1e3:.2f} mm (test)**; the pure integrator accumulates every "
+        "force error, which the closed loop rejects.",
+        "- The acceleration error is the largest on the validation set, as §3.5 also finds (a flexibility "
+        "excited by the pulses, which a rigid model lacks).",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+SIMULATION = Section(
+    "emps_sim", "emps2019", simulation_runs, simulation_rows, simulation_figures, simulation_findings
+)
