@@ -7,15 +7,17 @@
                                          [--presliding CSV AMPLITUDE HZ] | --simulate PLANT ...) [--out DIR]
     python scripts/identify.py recovery [--draws 20] [--out DIR]
     python scripts/identify.py idim     [--csv ESTIMATION [--validation LOG]] [--delays 0 1] [--out DIR]
-    python scripts/identify.py check    [--csv LOG --plant PRESET] [--controller LabPD] [--out DIR]
+    python scripts/identify.py check    [--csv LOG --plant PRESET] [--controller LabPD]
+                                        [--scan sigma0_n_per_m|delay_s VALUE ...] [--out DIR]
 
 idim: inverse-model identification (IDIM-LS, EMPS §3) of a drive from closed-loop logs: every friction
 structure fitted on the estimation log, cross-tested on the validation log; writes DIR/report.md,
 result.json and, for a linear drive, plant.yaml (a draft preset). check: the simulated drive (a plant
 preset, default the EMPS) in closed loop under its lab controller against a measured log, and open loop
-on its ν. Without --csv both use the EMPS logs (configs/published/emps/). Drive logs: a .mat with the EMPS
-names, or a CSV with time_s, position_m|_rad|_deg, reference_*, command_V[, disturbance_V] and
-'# drive_gain_n_per_v = ...' (docs/emps.md).
+on its ν (--scan: the closed loop over values of one preset knob). Without --csv both use the EMPS logs
+(configs/published/emps/). Drive logs: a .mat with the EMPS names, or a CSV with time_s,
+position_m|_rad|_deg, reference_*, command_V[, disturbance_V] and '# drive_gain_n_per_v = ...'
+(docs/emps.md).
 
 CSV logs: '#' provenance lines, then columns time_s, command_V or command_Nm, position_rad|position_deg
 and/or speed_rad_s|speed_deg_s, and for holds/ramps a segment column (one per hold or ramp) and optionally
@@ -60,6 +62,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--delays", type=int, nargs="+", default=[0, 1], help="idim: force shifts (samples)")
     ap.add_argument("--plant", help="check: the plant preset to simulate (configs/plants name)")
     ap.add_argument("--controller", default="LabPD", help="check: the controller of the closed loop")
+    ap.add_argument(
+        "--scan",
+        nargs="+",
+        metavar=("KNOB", "VALUE"),
+        help="check: repeat over values of sigma0_n_per_m or delay_s (e.g. --scan delay_s 0 0.0005 0.001)",
+    )
     ap.add_argument("--out", type=Path, default=Path("out/identify"))
     args = ap.parse_args(argv)
     try:
@@ -104,8 +112,11 @@ def _lab(args: argparse.Namespace) -> int:
         for p in workflow.write_identification(r, args.out):
             print(f"wrote {p}")
         return 0
-    comparisons = workflow.check(args.csv, args.plant, args.controller)
-    text = workflow.check_markdown(comparisons)
+    if args.scan:
+        knob, values = args.scan[0], tuple(float(v) for v in args.scan[1:])
+        text = workflow.scan_markdown(knob, workflow.scan(knob, values, args.csv, args.plant))
+    else:
+        text = workflow.check_markdown(workflow.check(args.csv, args.plant, args.controller))
     args.out.mkdir(parents=True, exist_ok=True)
     atomic_text(args.out / "check.md", text + "\n")
     print(text)

@@ -113,7 +113,7 @@ def test_the_scenarios_replay_the_measured_reference_and_pulses():
 
 def test_an_episode_longer_than_the_recording_is_refused():
     with pytest.raises(ConfigError, match="longer than the recorded reference"):
-        load_scenario("emps_tracking", episode_s=30.0)
+        load_scenario("emps_tracking_full", episode_s=30.0)
 
 
 def test_a_recording_beyond_the_envelope_is_refused():
@@ -127,8 +127,8 @@ def test_a_recorded_reference_naming_a_missing_signal_is_refused():
         load_scenario("emps_tracking", overrides={"reference": {"signal": "qx"}})
 
 
-def test_the_emps_env_runs_and_its_episode_is_the_recording():
-    env = gym.make("frictiongym/EMPS-v0", scenario="emps_tracking_cycle")
+def test_the_emps_env_runs_and_its_episode_is_the_recordings_first_cycle():
+    env = gym.make("frictiongym/EMPS-v0", scenario="emps_tracking")
     obs, _ = env.reset(seed=3)
     assert env.spec.max_episode_steps == 6200 and obs.dtype == np.float32
     _, _, term, trunc, info = env.step(np.zeros(1, dtype=np.float32))

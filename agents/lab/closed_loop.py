@@ -4,8 +4,9 @@ measured position and force; and the open-loop simulation of the common benchmar
 measured ν, output the position).
 
 The closed loop runs through the suite's one evaluation loop (agents/evaluate.py) on the benchmark's own
-scenarios (emps_tracking, emps_pulses) with the nominal plant, so what is checked against the
-measurement is exactly what the benchmark simulates. Relative errors are those of EMPS eq. (11) as the
+scenarios (the paper suite's emps_tracking_full, emps_pulses_full: the headline scenarios over the whole
+recordings) with the nominal plant, so what is checked against the measurement is what the benchmark
+simulates. Relative errors are those of EMPS eq. (11) as the
 description's Simulation_EMPS script computes them: the measured position filtered and differentiated as
 in §3.1 against the simulated states, the force gτ·ν, all from the 50th sample on.
 """
@@ -26,7 +27,7 @@ from .idim import PUBLISHED, IdimSettings, central_difference, matlab_filtfilt, 
 
 SIGNALS = ("position", "velocity", "acceleration", "force")
 ARRAYS = ("t", "position", "reference", "command", "disturbance")  # DriveLog's per-sample fields
-SCENARIOS = {"estimation": "emps_tracking", "validation": "emps_pulses"}  # the log each scenario replays
+SCENARIOS = {"estimation": "emps_tracking_full", "validation": "emps_pulses_full"}  # the log each replays
 
 
 @dataclass(frozen=True)
@@ -78,8 +79,8 @@ def closed_loop(
     plant: str | None = None,
 ) -> Comparison:
     """A log replayed in closed loop on the nominal plant under `controller`, against that log: the EMPS
-    'estimation' or 'validation' set through its own benchmark scenario (emps_tracking, emps_pulses),
-    or any drive log through emps_tracking with the log's reference and disturbance (DriveLog.replay)
+    'estimation' or 'validation' set through its paper-suite scenario (emps_tracking_full, emps_pulses_full),
+    or any drive log through emps_tracking_full with the log's reference and disturbance (DriveLog.replay)
     on preset `plant` (a configs/plants name; default the scenario's). The simulated force is
     gτ·(ν + disturbance): the command the controller computed at each sample plus the injected part,
     as the logged ν includes it. overrides: further scenario overrides (e.g. another friction model)."""

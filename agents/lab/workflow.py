@@ -220,3 +220,38 @@ def check_markdown(comparisons: list[closed_loop.Comparison]) -> str:
             f"| {Path(c.log).name} | {'closed' if i < n else 'open'} | {errs} | {c.position_rmse_m:.3g} |"
         )
     return "\n".join(lines)
+
+
+SCAN_KNOBS = ("sigma0_n_per_m", "delay_s")  # what `scan` varies (the preset values the data choose between)
+
+
+def scan(
+    knob: str, values: tuple[float, ...], log: Path | None = None, plant: str | None = None
+) -> list[tuple[float, closed_loop.Comparison]]:
+    """The closed-loop check repeated over values of one preset knob: the bristle stiffness σ0 (with σ1
+    kept critically damped, 2·sqrt(σ0·M)) or the actuation delay; on the EMPS estimation log without
+    `log`. How configs/plants/emps.yaml chose both (docs/emps.md)."""
+    if knob not in SCAN_KNOBS:
+        raise ConfigError("scan", f"{knob!r} not in {list(SCAN_KNOBS)}")
+    spec_path = plant or "emps"
+    mass = load_yaml(spec_path)["carriage"]["mass_kg"]
+    which = read_drive_log(log) if log is not None else "estimation"
+    out = []
+    for x in values:
+        if knob == "delay_s":
+            ov = {"sampling": {"delay_s": x}}
+        else:
+            ov = {"friction": {"sigma0_n_per_m": x, "sigma1_n_s_per_m": 2 * math.sqrt(x * mass)}}
+        out.append((x, closed_loop.closed_loop(which, overrides={"plant_overrides": ov}, plant=plant)))
+    return out
+
+
+def scan_markdown(knob: str, rows: list[tuple[float, closed_loop.Comparison]]) -> str:
+    """One row per value: the relative errors (%) of every signal."""
+    lines = [f"| {knob} | " + " | ".join(f"{s} %" for s in closed_loop.SIGNALS) + " |"]
+    lines.append("|---|" + "---|" * len(closed_loop.SIGNALS))
+    for x, c in rows:
+        lines.append(
+            f"| {x:g} | " + " | ".join(f"{c.relative_error_pct[s]:.4g}" for s in closed_loop.SIGNALS) + " |"
+        )
+    return "\n".join(lines)

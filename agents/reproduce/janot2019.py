@@ -212,9 +212,9 @@ def simulation_findings(runs: dict[str, closed_loop.Comparison], rows: list[dict
     lines = [
         "## EMPS: the simulated drive against its measurement",
         "",
-        "The benchmark scenarios (emps_tracking, emps_pulses) with the nominal plant under the lab PD, "
-        "driven by the measured reference (and pulses); relative errors (%) of EMPS eq. (11) as §3.5 "
-        "computes them.",
+        "The paper suite's scenarios (emps_tracking_full, emps_pulses_full) with the nominal plant under "
+        "the lab PD, driven by the measured reference (and pulses); relative errors (%) of EMPS eq. (11) "
+        "as §3.5 computes them.",
         "",
         "| log | signal | description's simulation | this simulator |",
         "|---|---|---|---|",
