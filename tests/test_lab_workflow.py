@@ -86,3 +86,14 @@ def test_a_rotary_log_gets_no_linear_draft_preset(tmp_path):
         "report.md",
         "result.json",
     ]
+
+
+def test_the_measurement_chooses_no_actuation_delay_and_stiff_bristles():
+    # the preset's two choices made on the estimation log (configs/plants/emps.yaml): the simulated
+    # force is closest to the measured one with no delay beyond the hold, and with the preset's σ0
+    delay = workflow.scan("delay_s", (0.0, 0.001))
+    assert delay[0][1].relative_error_pct["force"] < delay[1][1].relative_error_pct["force"] - 1.0
+    sigma = workflow.scan("sigma0_n_per_m", (2.6e5, 2.6e7))
+    assert sigma[1][1].relative_error_pct["force"] < 0.6 * sigma[0][1].relative_error_pct["force"]
+    with pytest.raises(ConfigError, match="'mass' not in"):
+        workflow.scan("mass", (1.0,))

@@ -41,6 +41,15 @@ def test_the_preset_is_the_published_symmetric_identification(spec):
     assert spec.command_limit == 10.0 and spec.control_period == 1e-3
 
 
+def test_a_joint_of_an_unknown_kind_is_refused():
+    from frictiongym.envs.plants.spec import JointSpec
+
+    with pytest.raises(
+        ConfigError, match=r"joint\[carriage\]\.kind: 'prismatic' not in \['hinge', 'slide'\]"
+    ):
+        JointSpec("carriage", 1.0, kind="prismatic")
+
+
 def test_the_carriage_is_a_slide_joint_of_the_preset_mass(spec):
     sim = PlantSim(spec)
     assert 'type="slide"' in to_mjcf(spec)
