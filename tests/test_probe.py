@@ -152,6 +152,7 @@ PLANT_SCENARIO = {
     "kang_robot": "kang_regulation",
     "m220": "m220_regulation",
     "flexible_servo": "flexible_speed_step",
+    "emps": "emps_tracking",
 }
 
 
