@@ -29,6 +29,13 @@ def _args(seeds: int) -> list[str]:
 STOP_S = 8.0  # an interrupted run ends within this (the remaining work takes several times longer)
 
 
+def _terminal_signals() -> None:
+    """In the child before exec: SIGINT as a terminal's foreground job has it. A shell without job
+    control starts background jobs with SIGINT ignored, and Python keeps an inherited SIG_IGN, so a
+    test run launched with `&` would otherwise send Ctrl-C to processes that cannot receive it."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _rows(out: Path) -> int:
     f = out / "episodes.csv"
     return f.read_text().count("\n") - 1 if f.exists() else -1
@@ -43,6 +50,7 @@ def _start(out: Path, seeds: int = SEEDS) -> tuple[subprocess.Popen, list]:
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        preexec_fn=_terminal_signals,
     )
     deadline = time.monotonic() + 180
     while _rows(out) < 1 and time.monotonic() < deadline:
@@ -105,6 +113,7 @@ def test_ctrl_c_stops_parallel_training_and_leaves_no_worker(tmp_path):
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        preexec_fn=_terminal_signals,
     )
     deadline = time.monotonic() + 180  # until both runs have written something (their folders)
     while len(list(tmp_path.glob("*/*/*/*"))) < 2 and time.monotonic() < deadline:
@@ -131,6 +140,7 @@ def test_ctrl_c_stops_a_sweep_on_ray_tune_and_leaves_no_process(tmp_path):
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        preexec_fn=_terminal_signals,
     )
     deadline = time.monotonic() + 240  # until a trial has started training (its model folder)
     while not list(tmp_path.glob("residual_sac_alpha/*/seed*")) and time.monotonic() < deadline:
