@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from frictiongym.envs.config import Node
 from frictiongym.envs.plants import plant_spec
 
 from ..lab import closed_loop, idim
@@ -28,6 +29,16 @@ def _by(rows: tuple[idim.ModelRow, ...], structure: str, delay: int) -> idim.Mod
     return next(r for r in rows if r.fit.structure == structure and r.delay_samples == delay)
 
 
+def _figure_rows(prefix: str, printed: Node, x: idim.Fit | idim.Validation, note: str) -> Iterator[dict]:
+    """The relative error, error norm and condition number of a fit or cross-test against the printed."""
+    for key, got in (
+        ("relative_error_pct", x.relative_error_pct),
+        ("error_norm_n", x.error_norm),
+        ("condition_number", x.condition_number),
+    ):
+        yield row(f"{prefix}.{key}", printed.number(key), got, PRINTED_REL, note=note)
+
+
 def idim_rows(rows: tuple[idim.ModelRow, ...]) -> Iterator[dict]:
     pub = published_node("emps2019").section("idim_ls")
     sym = _by(rows, "coulomb_viscous", 0)
@@ -37,19 +48,9 @@ def idim_rows(rows: tuple[idim.ModelRow, ...]) -> Iterator[dict]:
         yield row(f"emps.idim.{name}", value, sym.fit.value(name), PRINTED_ABS, relative=False, note=NOTE)
         i = sym.fit.names.index(name)
         yield row(f"emps.idim.{name}.std", std, sym.fit.std[i], PRINTED_ABS, relative=False, note="§3.4")
-    for key, got in (
-        ("relative_error_pct", sym.fit.relative_error_pct),
-        ("error_norm_n", sym.fit.error_norm),
-        ("condition_number", sym.fit.condition_number),
-    ):
-        yield row(f"emps.idim.{key}", s.number(key), got, PRINTED_REL, note="§3.4, eq. (11)")
+    yield from _figure_rows("emps.idim", s, sym.fit, "§3.4, eq. (11)")
     c = pub.section("cross_test")
-    for key, got in (
-        ("relative_error_pct", sym.validation.relative_error_pct),
-        ("error_norm_n", sym.validation.error_norm),
-        ("condition_number", sym.validation.condition_number),
-    ):
-        yield row(f"emps.cross_test.{key}", c.number(key), got, PRINTED_REL, note="§3.4, DATA_EMPS_PULSES")
+    yield from _figure_rows("emps.cross_test", c, sym.validation, "§3.4, DATA_EMPS_PULSES")
     asym = _by(rows, "coulomb_viscous_asym", 0)
     a = pub.section("asymmetric")
     for name in asym.fit.names:
@@ -57,12 +58,7 @@ def idim_rows(rows: tuple[idim.ModelRow, ...]) -> Iterator[dict]:
         i = asym.fit.names.index(name)
         yield row(f"emps.asym.{name}", value, asym.fit.value(name), PRINTED_ABS, relative=False, note="§4.2")
         yield row(f"emps.asym.{name}.std", std, asym.fit.std[i], PRINTED_ABS, relative=False, note="§4.2")
-    for key, got in (
-        ("relative_error_pct", asym.fit.relative_error_pct),
-        ("error_norm_n", asym.fit.error_norm),
-        ("condition_number", asym.fit.condition_number),
-    ):
-        yield row(f"emps.asym.{key}", a.number(key), got, PRINTED_REL, note="§4.2")
+    yield from _figure_rows("emps.asym", a, asym.fit, "§4.2")
 
 
 def best(rows: tuple[idim.ModelRow, ...]) -> idim.ModelRow:
