@@ -426,10 +426,11 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
         load = Limits.of_load_torque(spec)
         scenario = replace(scenario, disturbance=_reference(c.section("disturbance"), load)[0])
     for key, ref in (("reference", scenario.reference), ("disturbance", scenario.disturbance)):
-        if ref is not None and ref.type == "recorded" and ref.samples()[0][-1] < (steps - 1) * period - 1e-9:
-            raise c.error(
-                "episode_s", f"{episode} s is longer than the recorded {key} ({ref.samples()[0][-1]:.6g} s)"
-            )
+        if ref is None or ref.type != "recorded":
+            continue
+        recorded_s = float(ref.samples()[0][-1])
+        if recorded_s < (steps - 1) * period - 1e-9:
+            raise c.error("episode_s", f"{episode} s is longer than the recorded {key} ({recorded_s:.6g} s)")
     b = c.section("benchmark")
     main = b.choice("main_metric", METRIC_NAMES)
     secondary = b["secondary_metrics"]

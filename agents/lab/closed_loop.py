@@ -16,14 +16,13 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy import signal
 
 from frictiongym.envs.plants import PlantSpec
 from frictiongym.envs.plants.sim import PlantSim
 from frictiongym.envs.suites import Episode
 
 from .drive_log import DriveLog, emps_log
-from .idim import PUBLISHED, IdimSettings, central_difference, matlab_filtfilt, relative_error
+from .idim import PUBLISHED, IdimSettings, central_difference, relative_error, states
 
 SIGNALS = ("position", "velocity", "acceleration", "force")
 ARRAYS = ("t", "position", "reference", "command", "disturbance")  # DriveLog's per-sample fields
@@ -45,17 +44,10 @@ class Comparison:
 
 
 def measured_states(log: DriveLog, settings: IdimSettings = PUBLISHED) -> dict[str, np.ndarray]:
-    """The measured position, velocity and acceleration as EMPS §3.1 processes them (Butterworth forward
-    and backward, central differences), and the force gτ·ν, over the whole log."""
-    b, a = signal.butter(settings.butterworth_order, settings.cutoff_hz * 2 * log.period)
-    q = matlab_filtfilt(b, a, log.position)
-    dq = central_difference(q, log.period)
-    return {
-        "position": q,
-        "velocity": dq,
-        "acceleration": central_difference(dq, log.period),
-        "force": log.force,
-    }
+    """The measured position, velocity and acceleration as EMPS §3.1 processes them (idim.states: the
+    Butterworth forward and backward, central differences), and the force gτ·ν, over the whole log."""
+    s = states(log, replace(settings, first_sample=1, delay_samples=0))
+    return {"position": s.q, "velocity": s.dq, "acceleration": s.ddq, "force": s.force}
 
 
 def compare(

@@ -427,7 +427,7 @@ class ModelRow:
     the estimation log, cross-tested on the validation log."""
 
     fit: Fit
-    validation: Validation
+    validation: Validation | None  # None without a validation log
 
     @property
     def delay_samples(self) -> int:
@@ -436,20 +436,21 @@ class ModelRow:
 
 def model_table(
     estimation: DriveLog,
-    validation: DriveLog,
+    validation: DriveLog | None,
     structures: tuple[str, ...] = tuple(STRUCTURES),
     delays: tuple[int, ...] = (0, 1),
     settings: IdimSettings = IdimSettings(),
 ) -> list[ModelRow]:
     """Every structure under every actuation delay: fitted on `estimation` only, cross-tested on
-    `validation` (the validation log never enters a fit)."""
+    `validation` if there is one (the validation log never enters a fit)."""
     rows = []
     for d in delays:
         cfg = replace(settings, delay_samples=d)
-        se, sv = states(estimation, cfg), states(validation, cfg)
+        se = states(estimation, cfg)
+        sv = states(validation, cfg) if validation is not None else None
         for name in structures:
             f = fit(name, se, cfg)
-            rows.append(ModelRow(f, cross_test(f, sv)))
+            rows.append(ModelRow(f, cross_test(f, sv) if sv is not None else None))
     return rows
 
 
@@ -464,14 +465,15 @@ def emps_table() -> tuple[ModelRow, ...]:
 
 def markdown_table(rows: list[ModelRow] | tuple[ModelRow, ...]) -> str:
     """The friction-model table: per structure and actuation delay, the relative errors (%) of the fit on
-    the estimation log and of the cross-test on the validation log, the condition number of Φ, the
-    nonlinear parameter with its 95 % profile interval, and whether the data identify the structure."""
+    the estimation log and of the cross-test on the validation log (rows that have one), the condition
+    number of Φ, the nonlinear parameter with its 95 % profile interval, and whether the data identify
+    the structure."""
     lines = [
         "| structure | delay (samples) | estimation rel. error % | cross-test rel. error % | cond(Φ) | "
         "nonlinear parameter [95 %] | identifiable |",
         "|---|---|---|---|---|---|---|",
     ]
-    for r in rows:
+    for r in (r for r in rows if r.validation is not None):
         f = r.fit
         nl = f"{f.nonlinear[0]} = {f.nonlinear[1]:.3g}" if f.nonlinear else ""
         lines.append(

@@ -43,8 +43,7 @@ class Identification:
 
     estimation: DriveLog
     validation: DriveLog | None
-    fits: tuple[idim.Fit, ...]
-    validations: tuple[idim.Validation | None, ...]
+    rows: tuple[idim.ModelRow, ...]
     preset_fit: idim.Fit
 
 
@@ -62,17 +61,14 @@ def identify(opts: IdentifyOptions) -> Identification:
     unknown = sorted(set(opts.structures) - set(idim.STRUCTURES))
     if unknown:
         raise ConfigError("structures", f"unknown {unknown}; available: {sorted(idim.STRUCTURES)}")
-    fits, vals = [], []
-    for d in opts.delays:
-        cfg = idim.IdimSettings(**{**vars(opts.settings), "delay_samples": d})
-        se = idim.states(est, cfg)
-        sv = idim.states(val, cfg) if val is not None else None
-        for name in opts.structures:
-            f = idim.fit(name, se, cfg)
-            fits.append(f)
-            vals.append(idim.cross_test(f, sv) if sv is not None else None)
-    base = idim.fit("coulomb_viscous", idim.states(est, opts.settings), opts.settings)
-    return Identification(est, val, tuple(fits), tuple(vals), base)
+    rows = idim.model_table(est, val, opts.structures, opts.delays, opts.settings)
+    base = next(
+        (r.fit for r in rows if r.fit.structure == "coulomb_viscous" and r.fit.settings == opts.settings),
+        None,
+    )
+    if base is None:  # the table did not fit the preset's structure under the options' own processing
+        base = idim.fit("coulomb_viscous", idim.states(est, opts.settings), opts.settings)
+    return Identification(est, val, tuple(rows), base)
 
 
 def identify_markdown(r: Identification) -> str:
@@ -88,9 +84,8 @@ def identify_markdown(r: Identification) -> str:
         "",
     ]
     if r.validation is not None:
-        rows = [idim.ModelRow(f, v) for f, v in zip(r.fits, r.validations, strict=True) if v is not None]
-        lines += [idim.markdown_table(rows), ""]
-    for f in r.fits:
+        lines += [idim.markdown_table(r.rows), ""]
+    for f in (row.fit for row in r.rows):
         nl = f", {f.nonlinear[0]} profiled" if f.nonlinear else ""
         lines += [
             f"## {f.structure}, delay {f.settings.delay_samples} (estimation error "
@@ -137,7 +132,7 @@ def draft_preset(r: Identification) -> tuple[dict[str, Any], list[str]]:
         viscous_n_s_per_m=f.value("viscous_n_s_per_m"),
     )
     prov.append("carriage.mass_kg, friction.coulomb_n/offset_n/viscous_n_s_per_m: the symmetric fit (eq. 1)")
-    lugre = next((x for x in r.fits if x.structure == "lugre_asym" and x.identifiable), None)
+    lugre = next((x.fit for x in r.rows if x.fit.structure == "lugre_asym" and x.fit.identifiable), None)
     if lugre is not None:  # presliding length resolved by this log: σ0 = Fc/L, critically damped σ1
         fr["sigma0_n_per_m"] = fc / lugre.extra()
         prov.append(f"friction.sigma0_n_per_m: Fc / presliding length {lugre.extra():.3g} m (lugre_asym)")
@@ -181,7 +176,7 @@ def write_identification(r: Identification, out: Path) -> list[Path]:
             "condition_number": f.condition_number,
             "identifiable": f.identifiable,
         }
-        for f, v in zip(r.fits, r.validations, strict=True)
+        for f, v in ((row.fit, row.validation) for row in r.rows)
     ]
     atomic_text(written[1], json.dumps(res, indent=1))
     if r.estimation.unit == "m":

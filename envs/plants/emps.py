@@ -1,6 +1,7 @@
 """The EMPS prismatic drive (Janot, Gautier, Brunot 2019, "Data Set and Reference Models of EMPS"; text in
 configs/published/emps/EMPS_Description.txt): a DC motor and ball screw moving a load in translation,
-piloted at 1 kHz by the lab's PD (eq. 6) with a one-sample actuation delay and a ±10 V saturation. The
+piloted at 1 kHz by the lab's PD (eq. 6) with a ±10 V saturation (no actuation delay beyond the hold:
+the measurement contradicts the archive's one sample, configs/plants/emps.yaml `sampling.delay_s`). The
 only plant of the suite built from measurements: every number of the preset is the IDIM-LS estimate of
 the real drive's logs, or a fact of the description or of the data (configs/plants/emps.yaml).
 
@@ -39,13 +40,12 @@ ENVELOPE = Envelope(0.5, 1.0, 50.0)
 @dataclass(frozen=True)
 class EMPSDocument:
     """The lab's controller (eq. 6): ν = kp·kv·(q_r - q) - kv·q̇m, q̇m from the 2-tap FIR
-    fir = (0.5, 0.5) of the position (§2.2); kp (1/s), kv (V per m/s). offset_n: the description's offset
-    (N, eq. 1), simulated as the friction element's bias."""
+    fir = (0.5, 0.5) of the position (§2.2); kp (1/s), kv (V per m/s). (The description's offset, eq. 1,
+    is the friction element's bias, JointSpec.friction.bias = -offset.)"""
 
     lab_kp_per_s: float
     lab_kv_v_per_m_s: float
     lab_fir: tuple[float, float]
-    offset_n: float
 
 
 def build(cfg: Node, friction_model: str) -> PlantSpec:
@@ -73,7 +73,6 @@ def build(cfg: Node, friction_model: str) -> PlantSpec:
         lab_kp_per_s=lab.number("kp_per_s", *LAB_KP_RANGE_PER_S),
         lab_kv_v_per_m_s=lab.number("kv_v_per_m_s", *LAB_KV_RANGE_V_PER_M_S),
         lab_fir=(float(fir[0]), float(fir[1])),
-        offset_n=offset,
     )
     return PlantSpec(
         name="emps",
