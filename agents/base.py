@@ -9,6 +9,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from frictiongym.envs.plants import PlantSpec
+from frictiongym.envs.plants.params import EpisodeParams
 from frictiongym.envs.scenario import Scenario
 from frictiongym.envs.servo_env import decode_observation
 
@@ -36,6 +37,7 @@ class Controller(ABC):
     """
 
     name: ClassVar[str] = "controller"
+    reads_truth: ClassVar[bool] = False  # the evaluation loop calls observe_truth before every act
     sensor_kinds: ClassVar[tuple[str, ...]] = ("encoder", "tacho")
     tasks: ClassVar[tuple[str, ...]] = ("regulation", "tracking")
 
@@ -60,6 +62,16 @@ class Controller(ABC):
         """Scenario `observation` settings the controller reads (history, privileged); default none. They
         change what the env reports, never the episode (its draws come from named streams)."""
         return {}
+
+    def scenario_overrides(self) -> dict:
+        """Scenario keys the controller's row changes (the Ideal reference: nonlinear_friction false);
+        default none. Only the physical-limit references use it: an entry must run the scenario as is."""
+        return {}
+
+    def observe_truth(self, truth: dict[str, np.ndarray], params: EpisodeParams) -> None:
+        """The episode's ground truth at this control instant (ServoEnv.ground_truth) and its drawn
+        parameters, for controllers with reads_truth (the Oracle reference, never an entry)."""
+        return None
 
     @abstractmethod
     def reset(self, ctx: EpisodeContext) -> None:

@@ -40,7 +40,7 @@ from frictiongym.envs.suites import Episode
 
 from . import registry
 from .evaluate import EnvCache, run_episode
-from .stats import normalized_score
+from .stats import limit_score, normalized_score
 
 PARENT_POLL_S = 0.5  # how often a pool worker checks that its parent is alive (s)
 CHUNK = 4  # episodes per task: small, so a killed run loses little and the pool stays balanced
@@ -52,6 +52,7 @@ FIELDS = (
     "diverged",
     *METRIC_NAMES,
     "score",
+    "g",
     "controller_params",
     "env_id",
     "package_version",
@@ -389,32 +390,54 @@ def evaluate_to(
     jobs, skipped = plan(controllers, episodes, models)
     done = store.done()
     run_jobs([j for j in jobs if j.key() not in done], workers, store.append, progress, models, ray)
-    return store.finish(jobs, main_metrics(episodes)), skipped
+    return store.finish(jobs, scoring(episodes)), skipped
 
 
-def main_metrics(episodes: list[Episode]) -> dict[str, str]:
-    """Each scenario's main metric (from its YAML)."""
-    return {name: load_scenario(name).main_metric for name in {e.scenario for e in episodes}}
+@dataclass(frozen=True)
+class Scoring:
+    """How a scenario's episodes are scored (from its YAML): main metric, uncompensated loop, the kind of
+    limit score and its floor (the settling band)."""
+
+    main_metric: str
+    uncompensated: str
+    limit_score: str
+    floor: float
+
+
+def scoring(episodes: list[Episode]) -> dict[str, Scoring]:
+    """Each scenario's Scoring."""
+    out = {}
+    for name in {e.scenario for e in episodes}:
+        sc = load_scenario(name)
+        out[name] = Scoring(sc.main_metric, sc.uncompensated, sc.limit_score, sc.settle_band)
+    return out
 
 
 def canonical(
-    rows: list[dict[str, Any]], order: list[Job], main_metric: dict[str, str]
+    rows: list[dict[str, Any]], order: list[Job], scores: dict[str, Scoring]
 ) -> list[dict[str, Any]]:
-    """The rows in the jobs' order with their normalised scores (as read back, or as run in memory)."""
+    """The rows in the jobs' order with their scores (as read back, or as run in memory)."""
     rank = {j.key(): i for i, j in enumerate(order)}
     rows = sorted(rows, key=lambda r: rank.get(tuple(str(r[k]) for k in KEY), len(rank)))
-    attach_scores(rows, main_metric)
+    attach_scores(rows, scores)
     return rows
 
 
-def attach_scores(rows: list[dict[str, Any]], main_metric: dict[str, str]) -> None:
-    """row["score"] = 1 - m / m_Zero with m the scenario's main metric and m_Zero that of the Zero
-    controller on the same episode (nan where Zero did not run)."""
+def attach_scores(rows: list[dict[str, Any]], scores: dict[str, Scoring]) -> None:
+    """Per row, on the scenario's main metric m and the same episode's reference rows: score =
+    1 - m / m_Zero, and g, the friction penalty removed (stats.limit_score) between the scenario's
+    uncompensated loop and the Ideal row (nan where a reference did not run)."""
 
     def episode(r: dict[str, Any]) -> tuple[str, ...]:
         return (r["scenario"], str(r["seed"]), str(r["randomize"]), r["params"])
 
-    zero = {episode(r): float(r[main_metric[r["scenario"]]]) for r in rows if r["controller"] == "Zero"}
+    def metric(r: dict[str, Any]) -> float:
+        return float(r[scores[r["scenario"]].main_metric])
+
+    by = {(r["controller"], *episode(r)): metric(r) for r in rows}
     for r in rows:
-        m_zero = zero.get(episode(r), math.nan)
-        r["score"] = normalized_score(float(r[main_metric[r["scenario"]]]), m_zero)  # written with repr
+        s, e = scores[r["scenario"]], episode(r)
+        m = metric(r)
+        r["score"] = normalized_score(m, by.get(("Zero", *e), math.nan))  # written with repr
+        m_unc, m_ideal = by.get((s.uncompensated, *e), math.nan), by.get(("Ideal", *e), math.nan)
+        r["g"] = limit_score(m, m_unc, m_ideal, s.limit_score, s.floor)

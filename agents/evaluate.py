@@ -29,6 +29,7 @@ class EpisodeResult:
     diverged: bool
     log: dict[str, np.ndarray] | None = None
     score: float = math.nan  # normalised score 1 - m / m_Zero of the scenario's main metric (leaderboard)
+    g: float = math.nan  # friction penalty removed on the main metric (stats.limit_score; leaderboard)
 
     def row(self) -> dict[str, Any]:
         return {
@@ -75,8 +76,9 @@ class EnvCache:
 
 def controller_overrides(controller: Controller, scenario: Scenario, user: dict | None) -> dict | None:
     """The scenario overrides for running `controller`: the user's, plus the hardware the controller brings
-    (plant_overrides) and the observation blocks it reads (observation_overrides)."""
-    out = dict(user or {})
+    (plant_overrides), the observation blocks it reads (observation_overrides) and, for the
+    physical-limit references, the scenario keys their row changes (scenario_overrides)."""
+    out = {**(user or {}), **controller.scenario_overrides()}
     hw, obs = controller.plant_overrides(scenario), controller.observation_overrides()
     if hw:
         out["plant_overrides"] = {**out.get("plant_overrides", {}), **hw}
@@ -104,7 +106,10 @@ def run_episode(
     obs, _ = env.reset(seed=episode.seed, options=episode.options())
     controller.reset(EpisodeContext(sc, design or sc.spec, know))
     total, done, info = 0.0, False, {}
+    truth = controller.reads_truth
     while not done:
+        if truth:
+            controller.observe_truth(env.ground_truth(), env.core.params[0])
         obs, reward, term, trunc, info = env.step(controller.act(obs))
         total += reward
         done = term or trunc

@@ -1,10 +1,15 @@
-"""Leaderboard: every applicable controller, and the Zero reference, on the identical episodes of a suite.
+"""Leaderboard: every applicable controller, and the reference rows, on the identical episodes of a suite.
+
+Reference rows, run on every episode and never ranked (agents/limits.py): `Zero` (doing nothing), the
+scenario's uncompensated loop (benchmark.uncompensated, also an entry), `Ideal` (that loop on the
+friction-free twin of the episode) and `Oracle` (that loop plus the true friction torque).
 
 Per scenario: its main metric (declared in the scenario's YAML, lower is better) with a 95 % bootstrap
-interval, the normalised score s = 1 - m / m_Zero per episode, the secondary metrics, and a paired
-comparison of every controller against the scenario's best classical baseline on the same episodes (mean
-difference, its 95 % interval, probability of improvement). Across scenarios: the IQM of the normalised
-scores with stratified-bootstrap intervals, and a performance profile (agents/stats.py).
+interval, g = the friction penalty removed (stats.limit_score: 1 as if friction were gone, 0 no better
+than the uncompensated loop), the normalised score s = 1 - m / m_Zero, the secondary metrics, and a
+paired comparison of every controller against the scenario's best classical baseline on the same
+episodes. Per plant, over equal sets of scenarios only: the IQM of g with stratified-bootstrap
+intervals, the probability of improvement between the top entries, performance profiles of g.
 """
 
 from __future__ import annotations
@@ -27,13 +32,19 @@ from frictiongym.envs.suites import Episode, load_suite
 from . import engine, registry, stats
 from .evaluate import EnvCache, EpisodeResult, run_episode
 
-REFERENCE = "Zero"
-TAUS = np.linspace(-1.0, 1.0, 201)  # performance-profile thresholds of the normalised score
+REFERENCES = registry.REFERENCES  # Zero, Ideal, Oracle: run on every episode, never ranked
+TAUS = np.linspace(-0.5, 1.5, 201)  # performance-profile thresholds of g
+TOP = 5  # entries per set in the probability-of-improvement matrix
 
 
 def classical(name: str) -> bool:
-    """Built-in baselines (not the Zero reference, not plug-ins or trained models)."""
-    return name in registry.BUILTIN and name != REFERENCE
+    """Built-in baselines (not the reference rows, not plug-ins or trained models)."""
+    return name in registry.BUILTIN and name not in REFERENCES
+
+
+def entry(name: str) -> bool:
+    """A ranked row: anything but the reference rows."""
+    return name not in REFERENCES
 
 
 def per_seed(rs: list[EpisodeResult], metric: str) -> dict[int, float]:
@@ -42,7 +53,8 @@ def per_seed(rs: list[EpisodeResult], metric: str) -> dict[int, float]:
 
 
 def summarize(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> dict[str, list[dict]]:
-    """Per scenario, one row per controller, sorted by the mean main metric (see the module docstring)."""
+    """Per scenario, one row per controller (references included and marked), sorted by the mean main
+    metric (see the module docstring)."""
     groups: dict[str, dict[str, list[EpisodeResult]]] = defaultdict(dict)
     for r in results:
         groups[r.scenario].setdefault(r.controller, []).append(r)
@@ -54,9 +66,12 @@ def summarize(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> d
             rows.append(
                 {
                     "controller": name,
+                    "reference": not entry(name),
+                    "uncompensated": name == scenarios[sc].uncompensated,
                     "episodes": len(rs),
                     "diverged": sum(r.diverged for r in rs),
                     "main": stats.mean_ci([r.metrics[main] for r in rs]),
+                    "g": stats.mean_ci([r.g for r in rs]),
                     "score": stats.mean_ci([r.score for r in rs]),
                     "metrics": {m: stats.mean_ci([r.metrics[m] for r in rs]) for m in METRIC_NAMES},
                 }
@@ -72,6 +87,20 @@ def summarize(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> d
                 r["vs_baseline"] = stats.paired([mine[s] for s in seeds], [theirs[s] for s in seeds])
         table[sc] = rows
     return table
+
+
+def penalty(results: list[EpisodeResult], scenario: Scenario) -> float:
+    """The friction penalty of the scenario's uncompensated loop: the median over episodes of
+    (m_unc - m_ideal) / m_unc on the main metric (nan without both rows). It is what decides whether the
+    scenario's g is scored (benchmark.limit_score, checked by tests/test_leaderboard.py)."""
+    main, loop = scenario.main_metric, scenario.uncompensated
+    mine = [r for r in results if r.scenario == scenario.name]
+    unc, ideal = (
+        per_seed([r for r in mine if r.controller == loop], main),
+        per_seed([r for r in mine if r.controller == "Ideal"], main),
+    )
+    rel = [(unc[s] - ideal[s]) / unc[s] for s in sorted(set(unc) & set(ideal)) if unc[s] > 0]
+    return float(np.median(rel)) if rel else math.nan
 
 
 MAX_EFFORT_RATIO = 1.2  # a learned compensator may spend at most this times the baseline's effort_rms
@@ -90,7 +119,7 @@ def verdicts(table: dict[str, list[dict]], scenarios: dict[str, Scenario]) -> li
             continue
         band = scenarios[sc].settle_band
         for r in rows:
-            if r["controller"] in registry.BUILTIN or r["vs_baseline"] is None:
+            if not entry(r["controller"]) or r["controller"] in registry.BUILTIN or r["vs_baseline"] is None:
                 continue
             v = r["vs_baseline"]
             effort = r["metrics"]["effort_rms"][0] / base["metrics"]["effort_rms"][0]
@@ -118,17 +147,63 @@ def verdicts(table: dict[str, list[dict]], scenarios: dict[str, Scenario]) -> li
     return out
 
 
-def aggregate(results: list[EpisodeResult]) -> list[dict]:
-    """Per controller: the IQM of its normalised scores over the scenarios it applies to, with a 95 %
-    stratified-bootstrap interval (strata: scenarios), best first."""
-    strata: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+def plant_of(scenario: Scenario) -> str:
+    return scenario.spec.name
+
+
+def aggregate(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> list[dict]:
+    """Per plant, over equal sets of scenarios only. The plant's scored scenarios are those whose g is
+    defined (limit_score not none); each entry belongs to the set of scored scenarios it ran on, and each
+    set is ranked on its own, largest first: a controller defined for fewer scenarios is never ranked
+    against a larger set. Per set: the IQM of g with a 95 % stratified-bootstrap interval (strata:
+    scenarios), best first; the reference rows' IQM beside it (not ranked); the probability of improvement
+    P(X > Y) between its TOP entries (stats.probability_of_improvement); the pooled g of every row."""
+    g: dict[tuple[str, str], dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     for r in results:
-        strata[r.controller][r.scenario].append(r.score)
-    rows = [
-        {"controller": c, "scenarios": len(by_sc), "iqm": stats.iqm_ci(list(by_sc.values()))}
-        for c, by_sc in strata.items()
-    ]
-    return sorted(rows, key=lambda r: -r["iqm"][0] if math.isfinite(r["iqm"][0]) else math.inf)
+        sc = scenarios[r.scenario]
+        if sc.limit_score != "none":
+            g[(plant_of(sc), r.controller)][r.scenario].append(r.g)
+    out = []
+    for plant in sorted({p for p, _ in g}):
+        by_ctrl = {c: dict(v) for (p, c), v in g.items() if p == plant}
+        sets: dict[tuple[str, ...], list[str]] = defaultdict(list)
+        for c, by_sc in by_ctrl.items():
+            if entry(c):
+                sets[tuple(sorted(by_sc))].append(c)
+        for scs, ctrls in sorted(sets.items(), key=lambda kv: (-len(kv[0]), kv[0])):
+
+            def row(c: str, scs: tuple[str, ...] = scs, by_ctrl: dict = by_ctrl) -> dict:
+                return {"controller": c, "iqm": stats.iqm_ci([by_ctrl[c][s] for s in scs])}
+
+            ranked = sorted(
+                (row(c) for c in ctrls),
+                key=lambda r: -r["iqm"][0] if math.isfinite(r["iqm"][0]) else math.inf,
+            )
+            refs = [row(c) for c in REFERENCES if c in by_ctrl and all(s in by_ctrl[c] for s in scs)]
+            top = [r["controller"] for r in ranked[:TOP]]
+            matrix = {
+                (a, b): stats.probability_of_improvement(
+                    [by_ctrl[a][s] for s in scs], [by_ctrl[b][s] for s in scs]
+                )
+                for a in top
+                for b in top
+                if a != b
+            }
+            pooled = {
+                c: [x for s in scs for x in by_ctrl[c][s]] for c in [*ctrls, *(r["controller"] for r in refs)]
+            }
+            out.append(
+                {
+                    "plant": plant,
+                    "scenarios": list(scs),
+                    "rows": ranked,
+                    "references": refs,
+                    "top": top,
+                    "p_improve": matrix,
+                    "pooled": pooled,
+                }
+            )
+    return out
 
 
 def _fmt(ci: tuple[float, float, float]) -> str:
@@ -144,28 +219,85 @@ def _vs(r: dict) -> str:
     return f"{ci}, P(better) {v['p_improve']:.2f}"
 
 
+G_MEANING = (
+    "g is the friction penalty removed on the scenario's main metric m, on the same episode: "
+    "g = (m_unc - m) / (m_unc - m_ideal), m_unc the scenario's uncompensated loop, m_ideal that loop on "
+    "the friction-free twin of the episode (the Ideal row). 1 = as if friction were gone, 0 = no better "
+    "than the uncompensated loop, < 0 = worse, > 1 = better than the friction-free loop (feed-forward can "
+    "do that). Where the friction-free loop reaches ~0 (limit score `log`), g counts decades: "
+    "log10(m_unc/m) / log10(m_unc/m_ideal), m_ideal floored at the settling band. Where friction costs "
+    "the uncompensated loop nothing (limit score `none`: the penalty is negative or tiny), g is n/a and "
+    "the table ranks by the metric alone. The old score s = 1 - m/m_Zero stays as a column: doing nothing "
+    "leaves so large an error on most scenarios that every compensator scores 0.99+ on it."
+)
+
+
+def _penalty_line(s: Scenario, pen: float) -> str:
+    kind = {"linear": "scored linearly", "log": "scored in decades", "none": "not scored"}[s.limit_score]
+    pct = "n/a" if not math.isfinite(pen) else f"{100 * pen:.3g} %"
+    return (
+        f"Uncompensated loop: {s.uncompensated}; its friction penalty (median over episodes of "
+        f"(m_unc - m_ideal)/m_unc): {pct}; g {kind} (limit_score: {s.limit_score})."
+    )
+
+
+def _aggregate_md(agg: list[dict]) -> list[str]:
+    lines = []
+    for a in agg:
+        lines += [
+            "",
+            f"### {a['plant']}: {len(a['scenarios'])} scenario(s) ({', '.join(a['scenarios'])})",
+            "",
+            "| rank | controller | IQM of g [95 % CI] |",
+            "|---|---|---|",
+        ]
+        lines += [f"| {i + 1} | {r['controller']} | {_fmt(r['iqm'])} |" for i, r in enumerate(a["rows"])]
+        lines += [f"| (reference) | {r['controller']} | {_fmt(r['iqm'])} |" for r in a["references"]]
+        if len(a["top"]) > 1:
+            top = a["top"]
+            lines += [
+                "",
+                "P(row > column): probability that a run of the row's controller has the higher g "
+                "(rliable's probability of improvement, averaged over the set's scenarios).",
+                "",
+                "| | " + " | ".join(top) + " |",
+                "|---|" + "---|" * len(top),
+            ]
+            for x in top:
+                cells = ["" if x == y else f"{a['p_improve'][(x, y)]:.2f}" for y in top]
+                lines.append(f"| {x} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def markdown(
-    table: dict[str, list[dict]], agg: list[dict], suite: str, scenarios: dict[str, Scenario]
+    table: dict[str, list[dict]],
+    agg: list[dict],
+    suite: str,
+    scenarios: dict[str, Scenario],
+    penalties: dict[str, float],
 ) -> str:
     lines = [
         f"# frictiongym leaderboard, suite `{suite}`",
         "",
         "Per scenario: mean and 95 % bootstrap interval over the suite's episodes, sorted by the",
-        "scenario's main metric (lower is better; units: the tracked output in rad or V, the command in V or",
-        "N·m; see docs/envs.md). `score` is the normalised score s = 1 - m / m_Zero on the same episode",
-        "(1 perfect, 0 as bad as doing nothing). `vs baseline`: the mean per-episode difference of the main",
-        "metric against the scenario's best classical baseline (negative = better), its 95 % interval, and",
-        "the probability that the controller beats the baseline on an episode.",
+        "scenario's main metric (lower is better; units: the tracked output in rad, m or V, the command in V",
+        "or N·m; see docs/envs.md). Reference rows, on the same episodes and never ranked: `Zero` (doing",
+        "nothing), `Ideal` (the uncompensated loop without the nonlinear friction), `Oracle` (the",
+        "uncompensated loop plus the true friction torque, sampled and delayed as the loop is).",
         "",
-        "## Across scenarios",
+        G_MEANING,
         "",
-        "IQM of the normalised score, 95 % stratified-bootstrap interval (over the scenarios each controller "
-        "applies to).",
+        "`vs baseline`: the mean per-episode difference of the main metric against the scenario's best",
+        "classical baseline (negative = better), its 95 % interval, and the probability that the controller",
+        "beats the baseline on an episode.",
         "",
-        "| controller | scenarios | IQM score |",
-        "|---|---|---|",
+        "## Per plant",
+        "",
+        "IQM of g over the plant's scored scenarios, 95 % stratified-bootstrap interval. Each set of "
+        "scenarios is ranked on its own: a controller defined for fewer scenarios is never ranked against "
+        "a larger set.",
     ]
-    lines += [f"| {r['controller']} | {r['scenarios']} | {_fmt(r['iqm'])} |" for r in agg]
+    lines += _aggregate_md(agg)
     judged = verdicts(table, scenarios)
     if judged:
         lines += [
@@ -198,31 +330,35 @@ def markdown(
             "",
             f"Why: {s.why}",
             "",
-            f"| controller | episodes | {s.main_metric} (main) | score | "
+            _penalty_line(s, penalties[sc]),
+            "",
+            f"| controller | episodes | {s.main_metric} (main) | g | 1 - m/m_Zero | "
             + " | ".join(sec)
             + " | vs baseline |",
-            "|---|---|---|---|" + "---|" * len(sec) + "---|",
+            "|---|---|---|---|---|" + "---|" * len(sec) + "---|",
         ]
         for r in rows:
             div = f" ({r['diverged']} diverged)" if r["diverged"] else ""
+            name = r["controller"]
+            name = f"*{name}* (reference)" if r["reference"] else name
+            name = f"{name} (uncompensated)" if r["uncompensated"] else name
             lines.append(
-                f"| {r['controller']} | {r['episodes']}{div} | {_fmt(r['main'])} | {_fmt(r['score'])} | "
-                + " | ".join(_fmt(r["metrics"][m]) for m in sec)
-                + f" | {_vs(r)} |"
+                f"| {name} | {r['episodes']}{div} | {_fmt(r['main'])} | {_fmt(r['g'])} | "
+                f"{_fmt(r['score'])} | " + " | ".join(_fmt(r["metrics"][m]) for m in sec) + f" | {_vs(r)} |"
             )
     return "\n".join(lines) + "\n"
 
 
 def write_table_csv(table: dict[str, list[dict]], scenarios: dict[str, Scenario], path: Path) -> None:
-    """The tables: one row per (scenario, controller): main metric and score (mean, lo, hi), the paired
+    """The tables: one row per (scenario, controller): main metric, g and score (mean, lo, hi), the paired
     comparison against the baseline, and every metric (mean, lo, hi)."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(
         [
-            *("scenario", "controller", "episodes", "diverged", "main_metric", "main_mean", "main_lo"),
-            *("main_hi", "score_mean", "score_lo", "score_hi", "baseline", "diff_mean", "diff_lo"),
-            *("diff_hi", "p_improve"),
+            *("scenario", "controller", "reference", "episodes", "diverged", "main_metric", "main_mean"),
+            *("main_lo", "main_hi", "g_mean", "g_lo", "g_hi", "score_mean", "score_lo", "score_hi"),
+            *("baseline", "diff_mean", "diff_lo", "diff_hi", "p_improve"),
             *(f"{m}_{k}" for m in METRIC_NAMES for k in ("mean", "lo", "hi")),
         ]
     )
@@ -230,12 +366,26 @@ def write_table_csv(table: dict[str, list[dict]], scenarios: dict[str, Scenario]
         for r in rows:
             v = r["vs_baseline"] or {}
             w.writerow(
-                [sc, r["controller"], r["episodes"], r["diverged"], scenarios[sc].main_metric]
-                + [repr(x) for x in (*r["main"], *r["score"])]
+                [sc, r["controller"], r["reference"], r["episodes"], r["diverged"], scenarios[sc].main_metric]
+                + [repr(x) for x in (*r["main"], *r["g"], *r["score"])]
                 + [r["baseline"]]
                 + [repr(v.get(k, math.nan)) for k in ("diff", "diff_lo", "diff_hi", "p_improve")]
                 + [repr(x) for m in METRIC_NAMES for x in r["metrics"][m]]
             )
+    atomic_text(path, buf.getvalue())
+
+
+def write_aggregate_csv(agg: list[dict], path: Path) -> None:
+    """The per-plant aggregates: one row per (plant, set of scenarios, controller), ranked or reference."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["plant", "scenarios", "rank", "controller", "iqm_g", "iqm_g_lo", "iqm_g_hi"])
+    for a in agg:
+        scs = " ".join(a["scenarios"])
+        for i, r in enumerate(a["rows"]):
+            w.writerow([a["plant"], scs, i + 1, r["controller"], *(repr(x) for x in r["iqm"])])
+        for r in a["references"]:
+            w.writerow([a["plant"], scs, "reference", r["controller"], *(repr(x) for x in r["iqm"])])
     atomic_text(path, buf.getvalue())
 
 
@@ -258,49 +408,64 @@ def plots(
     randomize: dict[str, bool],
     models: tuple[str, ...] = (),
 ) -> list[str]:
-    """Normalised scores per scenario (strip plots), the aggregate IQM with intervals, the performance
-    profile, and per scenario the time responses of its best and worst episodes (by the main metric)."""
+    """g per scenario (strip plots; 1 - m/m_Zero where g is not scored), the per-plant IQM of g with
+    intervals, the per-plant performance profiles of g, and per scenario the time responses of its best
+    and worst episodes (by the main metric)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    ctrls = [r["controller"] for r in agg]
+    ctrls = list(dict.fromkeys(r.controller for r in results))
     colour = {c: f"C{i % 10}" for i, c in enumerate(ctrls)}
     names = []
     scs = list(table)
     fig, axes = plt.subplots(1, len(scs), figsize=(3.2 * len(scs), 3.8), squeeze=False)
     for ax, sc in zip(axes[0], scs, strict=True):
-        order = [r["controller"] for r in table[sc]]
+        scored = scenarios[sc].limit_score != "none"
+        order = [r["controller"] for r in table[sc] if r["controller"] != "Zero" or not scored]
         for i, c in enumerate(order):
-            s = np.array([r.score for r in results if r.scenario == sc and r.controller == c])
+            mine = [r for r in results if r.scenario == sc and r.controller == c]
+            s = np.array([r.g if scored else r.score for r in mine])
             jitter = np.random.default_rng(i).uniform(-0.15, 0.15, len(s))
             ax.plot(i + jitter, s, "o", ms=3, alpha=0.6, color=colour[c])
-            ax.plot([i - 0.3, i + 0.3], [np.nanmean(s)] * 2, "k-", lw=1.5)
+            if np.isfinite(s).any():
+                ax.plot([i - 0.3, i + 0.3], [np.nanmean(s)] * 2, "k-", lw=1.5)
         ax.set_xticks(range(len(order)), order, rotation=45, ha="right", fontsize=7)
-        ax.axhline(0.0, color="0.6", lw=0.8)
+        for y in (0.0, 1.0) if scored else (0.0,):
+            ax.axhline(y, color="0.6", lw=0.8)
         ax.set_title(sc, fontsize=8)
-    axes[0][0].set_ylabel("normalised score 1 - m/m_Zero")
+        ax.set_ylabel("g (friction penalty removed)" if scored else "1 - m/m_Zero (g not scored)", fontsize=7)
     names.append(_save_png(fig, out / "scores.png"))
 
-    fig, ax = plt.subplots(figsize=(6, 0.4 * len(agg) + 1.2))
-    for i, r in enumerate(agg):
-        m, lo, hi = r["iqm"]
-        ax.errorbar(m, i, xerr=[[m - lo], [hi - m]], fmt="o", color=colour[r["controller"]], capsize=3)
-    ax.set_yticks(range(len(agg)), [f"{r['controller']} ({r['scenarios']})" for r in agg])
-    ax.invert_yaxis()
-    ax.set(xlabel="IQM of the normalised score (95 % stratified bootstrap)", title="Across scenarios")
-    names.append(_save_png(fig, out / "aggregate_iqm.png"))
+    sets = [a for a in agg if a["rows"]]
+    if sets:
+        fig, axes = plt.subplots(len(sets), 1, figsize=(6.5, sum(0.3 * len(a["rows"]) + 1.2 for a in sets)),
+                                 squeeze=False)  # fmt: skip
+        for ax, a in zip(axes[:, 0], sets, strict=True):
+            rows = a["rows"] + a["references"]
+            for i, r in enumerate(rows):
+                m, lo, hi = r["iqm"]
+                ref = r in a["references"]
+                ax.errorbar(m, i, xerr=[[m - lo], [hi - m]], fmt="s" if ref else "o",
+                            color="0.4" if ref else colour[r["controller"]], capsize=3)  # fmt: skip
+            ax.set_yticks(range(len(rows)), [r["controller"] for r in rows], fontsize=7)
+            ax.invert_yaxis()
+            ax.axvline(1.0, color="0.6", lw=0.8)
+            ax.set_title(f"{a['plant']}: {len(a['scenarios'])} scenario(s)", fontsize=8)
+        axes[-1, 0].set_xlabel("IQM of g (95 % stratified bootstrap)")
+        names.append(_save_png(fig, out / "aggregate_iqm.png"))
 
-    fig, ax = plt.subplots(figsize=(6, 4))
-    for c in ctrls:
-        ax.plot(TAUS, stats.performance_profile([r.score for r in results if r.controller == c], TAUS),
-                label=c, color=colour[c])  # fmt: skip
-    ax.set(
-        xlabel="normalised score τ", ylabel="fraction of episodes with score > τ", title="Performance profile"
-    )
-    ax.legend(fontsize=7)
-    names.append(_save_png(fig, out / "performance_profile.png"))
+        fig, axes = plt.subplots(1, len(sets), figsize=(4.2 * len(sets), 3.6), squeeze=False)
+        for ax, a in zip(axes[0], sets, strict=True):
+            for c, g in a["pooled"].items():
+                ref = c in REFERENCES
+                ax.plot(TAUS, stats.performance_profile(g, TAUS), "--" if ref else "-", label=c,
+                        color="0.4" if ref else colour[c], lw=1)  # fmt: skip
+            ax.set(xlabel="g threshold τ", title=f"{a['plant']}: {len(a['scenarios'])} scenario(s)")
+            ax.legend(fontsize=6)
+        axes[0, 0].set_ylabel("fraction of episodes with g > τ")
+        names.append(_save_png(fig, out / "performance_profile.png"))
 
     for sc in scs:
         main = scenarios[sc].main_metric
@@ -333,6 +498,7 @@ def result_of(row: dict[str, Any]) -> EpisodeResult:
         episode_return=float(row["return"]),
         diverged=row["diverged"] in (True, "True"),
         score=float(row["score"]),
+        g=float(row["g"]),
     )
 
 
@@ -359,22 +525,25 @@ def run(
     models: tuple[str, ...] = (),
     ray: engine.Ray | None = None,
 ) -> tuple[list[EpisodeResult], dict[str, list[dict]]]:
-    """Evaluate (the suite, or the given episodes) with the Zero reference always included, and
-    summarize. With out: results go to out/episodes.csv incrementally (a rerun resumes), then
-    leaderboard.md, leaderboard.csv (the tables) and PNG plots, each written atomically."""
+    """Evaluate (the suite, or the given episodes) with the reference rows (Zero, Ideal, Oracle) and each
+    scenario's uncompensated loop always included, and summarize. With out: results go to
+    out/episodes.csv incrementally (a rerun resumes), then leaderboard.md, leaderboard.csv (the tables),
+    aggregate.csv (the per-plant aggregates) and PNG plots, each written atomically."""
     models = tuple(str(m) for m in models)
     available = registry.available(models)
     names = controllers or list(available)
     unknown = [n for n in names if n not in available]
     if unknown:
         raise ValueError(f"unknown controllers {unknown}; available: {list(available)}")
-    names = [REFERENCE, *(n for n in names if n != REFERENCE)]
     episodes = episodes if episodes is not None else load_suite(suite)
+    scenarios = {name: load_scenario(name) for name in dict.fromkeys(e.scenario for e in episodes)}
+    loops = [s.uncompensated for s in scenarios.values()]  # g needs them on every episode
+    names = list(dict.fromkeys([*REFERENCES, *loops, *names]))
     if out is None:
         jobs, skipped = engine.plan(names, episodes, models)
         rows: list[dict[str, Any]] = []
         engine.run_jobs(jobs, workers, rows.extend, progress, models, ray)
-        rows = engine.canonical(rows, jobs, engine.main_metrics(episodes))
+        rows = engine.canonical(rows, jobs, engine.scoring(episodes))
     else:
         options = {"episodes": [asdict(e) for e in episodes], "controllers": names, "models": list(models)}
         rows, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models, ray)
@@ -382,11 +551,12 @@ def run(
         if progress:
             print(f"skipped {name} on {scenario}: {reason}")
     results = [result_of(r) for r in rows]
-    scenarios = {name: load_scenario(name) for name in {e.scenario for e in episodes}}
-    table, agg = summarize(results, scenarios), aggregate(results)
+    table, agg = summarize(results, scenarios), aggregate(results, scenarios)
     if out is not None:
         write_table_csv(table, scenarios, out / "leaderboard.csv")
+        write_aggregate_csv(agg, out / "aggregate.csv")
         figs = plots(results, table, agg, out, scenarios, {e.scenario: e.randomize for e in episodes}, models)
-        md = markdown(table, agg, suite, scenarios)
+        pens = {sc: penalty(results, s) for sc, s in scenarios.items()}
+        md = markdown(table, agg, suite, scenarios, pens)
         atomic_text(out / "leaderboard.md", md + "\n" + "".join(f"![{f}]({f})\n" for f in figs))
     return results, table

@@ -23,6 +23,7 @@ from pathlib import Path
 from .base import Controller, Zero
 from .classical import PD, PID, RDFC, CoulombViscousFF, LabPD, LuGreObserver, Southward, StateFeedback
 from .learned import PolicyInputs, SB3Policy
+from .limits import Ideal, Oracle
 
 ENTRY_POINT_GROUP = "frictiongym.controllers"
 MANIFEST = "manifest.yaml"
@@ -40,6 +41,23 @@ BUILTIN: dict[str, Callable[[], Controller]] = {
     "LuGreObserver": LuGreObserver,
     "CoulombViscousFF": CoulombViscousFF,
 }
+
+
+def uncompensated_loop(name: str) -> Controller:
+    """A scenario's uncompensated loop (benchmark.uncompensated): a built-in classical controller."""
+    if name not in BUILTIN or name == "Zero":
+        loops = [n for n in BUILTIN if n != "Zero"]
+        raise ValueError(f"benchmark.uncompensated: {name!r} is not a built-in controller; one of {loops}")
+    return BUILTIN[name]()
+
+
+# The physical-limit rows (agents/limits.py): with Zero, the references every leaderboard runs on every
+# episode; never ranked as entries, never a baseline.
+LIMITS: dict[str, Callable[[], Controller]] = {
+    "Ideal": partial(Ideal, uncompensated_loop),
+    "Oracle": partial(Oracle, uncompensated_loop),
+}
+REFERENCES = ("Zero", *LIMITS)
 
 
 MODELS_DIR = Path(__file__).parent / "models"  # committed trained models, by group
@@ -107,14 +125,15 @@ def model_factory(folder: Path) -> tuple[str, Callable[[], Controller]]:
 
 
 def available(models: Sequence[str | Path] = ()) -> dict[str, Callable[[], Controller]]:
-    """Every controller factory by name: built-ins, the entry-point group's, then the saved models under
+    """Every controller factory by name: built-ins, the physical-limit references, the entry-point group's,
+    then the saved models under
     `models` (none may shadow an earlier name). Built once per set of model folders and process."""
     return dict(_available(tuple(str(m) for m in models)))
 
 
 @cache
 def _available(models: tuple[str, ...]) -> dict[str, Callable[[], Controller]]:
-    out = dict(BUILTIN)
+    out = {**BUILTIN, **LIMITS}
     extra = [(ep.name, ep.value, ep.load) for ep in entry_points(group=ENTRY_POINT_GROUP)]
     for folder in model_dirs(models):
         name, factory = model_factory(folder)

@@ -1,9 +1,12 @@
 """Statistics of the leaderboard, after Agarwal et al. 2021 ("Deep RL at the edge of the statistical
 precipice", the rliable methods) with scipy.stats: bootstrap intervals, the interquartile mean (IQM) with
-stratified-bootstrap intervals, paired comparisons on identical episodes, and performance profiles.
+stratified-bootstrap intervals, paired comparisons on identical episodes, the probability of improvement,
+and performance profiles.
 
-Every metric is "lower is better"; the normalised score s = 1 - m / m_Zero is "higher is better" (1: perfect,
-0: as bad as doing nothing, < 0: worse). Bootstraps use a fixed seed, so the numbers are reproducible.
+Every metric is "lower is better"; the scores are "higher is better": g, the friction penalty removed
+(limit_score: 1 as if friction were gone, 0 no better than the uncompensated loop) and the normalised
+score s = 1 - m / m_Zero (1: perfect, 0: as bad as doing nothing, < 0: worse). Bootstraps use a fixed
+seed, so the numbers are reproducible.
 """
 
 from __future__ import annotations
@@ -12,7 +15,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from scipy.stats import bootstrap, trim_mean
+from scipy.stats import bootstrap, mannwhitneyu, trim_mean
 
 CONFIDENCE = 0.95
 N_RESAMPLES = 2000
@@ -24,6 +27,34 @@ def normalized_score(m: float, m_zero: float) -> float:
     if not (math.isfinite(m) and math.isfinite(m_zero)) or m_zero == 0:
         return math.nan
     return 1.0 - m / m_zero
+
+
+LOG_FLOOR_DECADES = 3.0  # a log score counts errors down to 1e-3 of the settling band (0 stays finite)
+
+
+def limit_score(m: float, m_unc: float, m_ideal: float, kind: str, floor: float) -> float:
+    """The friction penalty removed on one episode (docs/envs.md, "Scores"), higher is better:
+
+    - linear: g = (m_unc - m) / (m_unc - m_ideal): 1 as if friction were gone, 0 no better than the
+      uncompensated loop, < 0 worse, > 1 better than the friction-free loop; nan if the penalty
+      m_unc - m_ideal is not positive on this episode.
+    - log (the friction-free loop reaches ~0): the decades of the uncompensated error removed, over the
+      decades down to the friction-free loop's error floored at `floor` (the scenario's settling band):
+      log10(m_unc / m) / log10(m_unc / max(m_ideal, floor)); m is floored LOG_FLOOR_DECADES below it;
+      nan if m_unc is not above that floor.
+    - none: nan (friction costs the uncompensated loop nothing on this scenario).
+    """
+    if kind == "none" or not all(math.isfinite(x) for x in (m, m_unc, m_ideal)):
+        return math.nan
+    if kind == "linear":
+        penalty = m_unc - m_ideal
+        return (m_unc - m) / penalty if penalty > 0 else math.nan
+    if kind == "log":
+        ideal = max(m_ideal, floor)
+        if not m_unc > ideal:
+            return math.nan
+        return math.log10(m_unc / max(m, floor * 10.0**-LOG_FLOOR_DECADES)) / math.log10(m_unc / ideal)
+    raise ValueError(f"limit score kind {kind!r} not in ('linear', 'log', 'none')")
 
 
 def _finite(x: Sequence[float]) -> np.ndarray:
@@ -100,9 +131,22 @@ def paired(candidate: Sequence[float], baseline: Sequence[float]) -> dict[str, f
     return {"diff": mean, "diff_lo": lo, "diff_hi": hi, "p_improve": p, "n": len(c)}
 
 
+def probability_of_improvement(x: Sequence[Sequence[float]], y: Sequence[Sequence[float]]) -> float:
+    """P(X > Y) of Agarwal et al. 2021 (rliable): per stratum (a scenario), the probability that a run of
+    X scores higher than a run of Y, ties counting one half (the Mann-Whitney U statistic over n·m,
+    scipy.stats.mannwhitneyu), averaged over the strata where both have finite scores (scores: higher is
+    better)."""
+    ps = []
+    for a, b in zip(x, y, strict=True):
+        a, b = _finite(a), _finite(b)
+        if len(a) and len(b):
+            ps.append(float(mannwhitneyu(a, b).statistic) / (len(a) * len(b)))
+    return float(np.mean(ps)) if ps else math.nan
+
+
 def performance_profile(scores: Sequence[float], taus: np.ndarray) -> np.ndarray:
-    """Fraction of episodes whose normalised score exceeds each threshold τ (the run-score distribution
-    of Agarwal et al. 2021, Fig. 5)."""
+    """Fraction of episodes whose score exceeds each threshold τ (the run-score distribution of Agarwal
+    et al. 2021, Fig. 5)."""
     s = _finite(scores)
     if len(s) == 0:
         return np.full(len(taus), math.nan)

@@ -259,13 +259,16 @@ class ServoCore:
         self, seed: int, pinned: dict | None = None
     ) -> tuple[EpisodeParams, np.ndarray, np.ndarray, list[np.random.Generator]]:
         """Everything random about an episode, from its seed alone, each quantity from its own named
-        stream (envs/sampler.py): parameters (then `pinned` parameter values), initial state, and the
-        noise and jitter streams."""
+        stream (envs/sampler.py): parameters (then `pinned` parameter values; on a scenario with
+        nonlinear_friction false, their friction-free twin), initial state, and the noise and jitter
+        streams."""
         sc = self.sc
         if sc.randomize:
             params = EpisodeParams.draw(sc.spec, seed, pinned)
         else:
             params = EpisodeParams.from_values(sc.spec, pinned or {})
+        if not sc.nonlinear_friction:  # the friction-free twin of the same draw
+            params = params.friction_free()
         init = stream(seed, INITIAL_STATE)
         qpos = sc.spec.full_state(init.uniform(sc.qpos_range[:, 0], sc.qpos_range[:, 1]))
         qvel = sc.spec.full_state(init.uniform(sc.qvel_range[:, 0], sc.qvel_range[:, 1]))
@@ -449,7 +452,9 @@ class ServoCore:
     # ------------------------------------------------------------------ ground truth and metrics
     def ground_truth(self, i: int | slice) -> dict:
         """True states of simulation i (or one row per simulation of a slice): joint angles (rad) and
-        velocities (rad/s), bristle deflections (rad), friction torques (N·m)."""
+        velocities (rad/s), bristle deflections (rad), friction torques (N·m), and their nonlinear part
+        (N·m: -(σ0·z + σ1·ż) + b, friction_torque without the viscous -σ2·v; what the friction-free twin
+        removes), one per frictional joint."""
         if self._fast:  # the same values from the MjData, with plain indices
             b = self.backend
             qv, f, s2 = b.qvel, b.force, self.sigma2[0]
@@ -460,6 +465,7 @@ class ServoCore:
                 "friction_torque": np.array(
                     [joint_friction_torque(f[a], s2[j], qv[dof]) for j, (a, dof) in enumerate(self._fric)]
                 ),
+                "nonlinear_friction_torque": f[self.fric_act],
             }
         qpos, qvel, act, force = self.backend.state()
         qv = qvel[i]
@@ -470,6 +476,7 @@ class ServoCore:
             "friction_torque": joint_friction_torque(
                 force[i, self.fric_act], self.sigma2[i], qv[..., self.fric_dofs]
             ),
+            "nonlinear_friction_torque": force[i, self.fric_act],
         }
 
     def params_dict(self, i: int) -> dict:

@@ -100,13 +100,25 @@ class LuGreParams:
             sigma2=self.sigma2 * viscous,
         )
 
+    def friction_free(self) -> LuGreParams:
+        """The friction-free twin: Coulomb, static and bias levels 0 (so no Stribeck curve and no
+        presliding force: MuJoCo's LuGre keeps z = 0 when g(v) = 0), σ2·v kept: the viscous term is part
+        of the linear plant a loop is designed on. σ0, σ1, vs are kept (σ0 > 0 is required at runtime)."""
+        return replace(self, fc=0.0, fs=0.0, bias=0.0)
+
+    @property
+    def is_friction_free(self) -> bool:
+        return self.fc == 0.0 and self.fs == 0.0 and self.bias == 0.0
+
     def validate(self, field: str) -> None:
-        """Reject unphysical values, naming the field."""
-        positive(self.fc, f"{field}.fc")
+        """Reject unphysical values, naming the field. All three levels 0 is the friction-free twin."""
         positive(self.vs, f"{field}.vs")
         positive(self.sigma0, f"{field}.sigma0")  # σ0 = 0 at runtime is fatal in MuJoCo's dcmotor
         nonneg(self.sigma1, f"{field}.sigma1")
         nonneg(self.sigma2, f"{field}.sigma2")
+        if self.is_friction_free:
+            return
+        positive(self.fc, f"{field}.fc")
         if not math.isfinite(self.fs) or self.fs < self.fc:
             raise ConfigError(
                 f"{field}.fs", f"static level {self.fs} must be finite and >= Coulomb {self.fc}"

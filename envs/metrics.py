@@ -6,6 +6,8 @@ tracked joint (rad/s). Error e = y - r.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 METRIC_NAMES = (
@@ -50,11 +52,35 @@ def settling_time(t: np.ndarray, e: np.ndarray, band: float) -> float:
     return float(t[outside[-1] + 1])
 
 
-def overshoot_pct(e: np.ndarray) -> float:
-    """Largest excursion past the set-point opposite to the initial error, in % of |e(0)| (0 if none)."""
-    if abs(e[0]) == 0:
-        return 0.0
-    return float(max(0.0, np.max(-np.sign(e[0]) * e)) / abs(e[0]) * 100.0)
+def holds(r: np.ndarray) -> list[tuple[int, int]]:
+    """[start, stop) index ranges where the reference is at rest: maximal runs of at least two equal
+    consecutive samples."""
+    still = np.flatnonzero(np.diff(r) == 0)  # r[i + 1] == r[i]
+    if len(still) == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(still) > 1)
+    starts = np.concatenate([[still[0]], still[breaks + 1]])
+    ends = np.concatenate([still[breaks], [still[-1]]]) + 2
+    return list(zip(starts.tolist(), ends.tolist(), strict=True))
+
+
+def overshoot_pct(r: np.ndarray, e: np.ndarray, min_move: float) -> float:
+    """Largest overshoot of the episode's moves, each in % of its own size. A move ends where the reference
+    comes to rest (a hold, `holds`); its size is the distance from the previous hold's value (for the first
+    hold: from the initial output y(0) = r(0) + e(0), regulation from an initial error), its overshoot
+    the largest excursion of the output past the held value in the move's direction, during the hold.
+    Moves smaller than min_move (the settling band) are not moves; nan if there is none (a reference that
+    never rests, e.g. a sine). The same unit for r, e and min_move."""
+    worst, previous = math.nan, float(r[0] + e[0])
+    for i, j in holds(r):
+        target = float(r[i])
+        size = target - previous
+        previous = target
+        if abs(size) < min_move:
+            continue
+        past = max(0.0, float(np.max(np.sign(size) * e[i:j])))
+        worst = max(past / abs(size) * 100.0, 0.0 if math.isnan(worst) else worst)
+    return worst
 
 
 def limit_cycle(t: np.ndarray, y: np.ndarray, window: float = 0.4, min_amp: float = 0.0) -> dict[str, float]:
@@ -122,7 +148,7 @@ def episode_metrics(
     out = integral_errors(t, e)
     out["final_error"] = final_error(e)
     out["settling_time"] = settling_time(t, e, settle_band)
-    out["overshoot_pct"] = overshoot_pct(e)
+    out["overshoot_pct"] = overshoot_pct(r, e, settle_band)
     out.update(limit_cycle(t, y - r, min_amp=lc_min_amp))
     out["stick_slip_events"] = float(stick_slip_events(v, stick_velocity))
     out["reversal_peak_error"] = reversal_peak_error(t, r, e, reversal_half_window)

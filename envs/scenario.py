@@ -38,6 +38,10 @@ OUTPUT_SCALE_RANGE = (1e-6, 1e6)
 SETTLE_BAND_RANGE = (1e-12, 1e6)  # the settling band (rad or V): from below any encoder's resolution
 MIN_FREQUENCY_HZ = 1e-6  # a period of 11 days: slower is a constant reference (type: constant)
 MIN_ACTION_SCALE_FRACTION = 1e-6  # an action may not scale to less than a millionth of the command limit
+# How the leaderboard scores the friction penalty removed on the main metric (docs/envs.md, "Scores"):
+# linear g = (m_unc - m)/(m_unc - m_ideal); log: decades, log10(m_unc/m)/log10(m_unc/m_ideal), where the
+# friction-free loop reaches ~0; none: not scored (friction costs the uncompensated loop nothing).
+LIMIT_SCORES = ("linear", "log", "none")
 
 
 def scenario_names() -> list[str]:
@@ -156,6 +160,11 @@ class Scenario:
     main_metric: str = "iae"  # what the leaderboard ranks by (every metric: lower is better)
     secondary_metrics: tuple[str, ...] = ()
     why: str = ""  # the friction phenomenon the scenario exercises, and where in the documents
+    # False: the friction-free twin: every draw the same, the nonlinear friction (Coulomb, static,
+    # Stribeck, presliding, asymmetry bias) removed, the viscous term kept (EpisodeParams.friction_free)
+    nonlinear_friction: bool = True
+    uncompensated: str = ""  # name of the loop the physical-limit rows build on (benchmark.uncompensated)
+    limit_score: str = "linear"  # how the friction penalty removed is scored (benchmark.limit_score)
 
     @property
     def control_period(self) -> float:
@@ -419,6 +428,7 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
         history=obs.integer("history", 0, 1000),
         privileged=obs.boolean("privileged"),
         reward_weights={k: rw.nonneg(k, MAX_REWARD_WEIGHT) for k in ("tracking", "effort", "smoothness")},
+        nonlinear_friction=c.boolean("nonlinear_friction"),
     )
     if c.get("disturbance") is not None:
         if spec.disturbance_joint is None:
@@ -439,7 +449,18 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
     why = b["why"]
     if not isinstance(why, str) or not why.strip():
         raise b.error("why", "expected one line saying which friction phenomenon, and where in the documents")
-    scenario = replace(scenario, main_metric=main, secondary_metrics=tuple(secondary), why=why.strip())
+    loop = b["uncompensated"]
+    if not isinstance(loop, str) or not loop.strip():
+        raise b.error("uncompensated", "expected the name of the scenario's uncompensated loop, e.g. PD")
+    b.get("uncompensated_why")
+    scenario = replace(
+        scenario,
+        main_metric=main,
+        secondary_metrics=tuple(secondary),
+        why=why.strip(),
+        uncompensated=loop,
+        limit_score=b.choice("limit_score", LIMIT_SCORES),
+    )
     c.get("description")
     c.done()
     return scenario

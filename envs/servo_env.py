@@ -220,8 +220,9 @@ class ServoEnv(JsonSafeSpec, gym.Env, EzPickle):
 
     def ground_truth(self) -> dict[str, np.ndarray]:
         """True states now: joint angles (qpos, rad) and velocities (qvel, rad/s), LuGre bristle deflections
-        (bristle, rad) and friction torques on the frictional joints (friction_torque, N·m). In info after
-        every step and reset with ground_truth_in_info=True."""
+        (bristle, rad), friction torques on the frictional joints (friction_torque, N·m) and their
+        nonlinear part (nonlinear_friction_torque, N·m, without the viscous term). In info after every step
+        and reset with ground_truth_in_info=True."""
         return self.core.ground_truth(0)
 
     # --------------------------------------------------------------- helpers for classical controllers

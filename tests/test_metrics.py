@@ -16,13 +16,44 @@ def test_integrals_of_a_constant_error():
     )
 
 
+def test_final_error_is_the_mean_absolute_error_of_the_last_tenth():
+    e = np.concatenate([np.full(90, 5.0), np.array([1.0, -1.0] * 5)])
+    assert metrics.final_error(e) == pytest.approx(1.0)
+
+
 def test_settling_overshoot_on_a_damped_oscillation():
     t = np.arange(0, 10, 0.01)
     e = np.exp(-t) * np.cos(2 * np.pi * t)  # first undershoot near t = 0.5: e ≈ -exp(-0.5)
-    assert metrics.overshoot_pct(e) == pytest.approx(100 * np.exp(-0.5), rel=0.02)
+    # regulation: the move is the initial error e(0) = 1, the overshoot the largest excursion past 0
+    r = np.zeros_like(t)
+    assert metrics.overshoot_pct(r, e, 0.02) == pytest.approx(100 * np.exp(-0.5), rel=0.02)
     ts = metrics.settling_time(t, e, 0.02)
     assert np.all(np.abs(e[t >= ts]) <= 0.02) and abs(e[t < ts][-1]) > 0.02
     assert np.isnan(metrics.settling_time(t, np.ones_like(t), 0.02))
+
+
+def test_overshoot_is_per_move_relative_to_the_move_size():
+    """Tracking moves from a resting output: a 1-unit move overshot by 0.1 (10 %) and a 0.2-unit move
+    back overshot by 0.05 (25 %) read 25 %, not a ratio to e(0) = 0; moves below min_move and a
+    reference that never rests are not moves."""
+    r = np.concatenate([np.zeros(10), np.linspace(0, 1, 6)[1:], np.ones(20), np.full(20, 0.8)])
+    e = np.zeros_like(r)
+    e[20] = 0.1  # past 1 in the move's (+) direction
+    e[16] = -0.3  # behind the target: not an overshoot
+    e[40] = -0.05  # past 0.8 in the (-) direction of the second move
+    assert metrics.overshoot_pct(r, e, 1e-3) == pytest.approx(25.0)
+    assert metrics.overshoot_pct(r, e, 0.5) == pytest.approx(10.0)  # the 0.2 move is below min_move
+    t = np.linspace(0, 10, 1001)
+    assert np.isnan(metrics.overshoot_pct(np.sin(t), 0.1 * np.cos(t), 1e-3))
+
+
+def test_every_metric_of_an_episode_is_reported():
+    t = np.arange(1, 101) * 0.01
+    r, y = np.ones(100), np.ones(100)
+    m = metrics.episode_metrics(t, r, y, np.zeros(100), np.zeros(100), settle_band=0.01, stick_velocity=0.1)
+    assert set(m) == set(metrics.METRIC_NAMES)
+    assert m["iae"] == 0.0 and m["settling_time"] == pytest.approx(0.01)
+    assert np.isnan(m["overshoot_pct"])  # the output starts on the reference: no move to overshoot
 
 
 def test_limit_cycle_amplitude_and_frequency():

@@ -123,6 +123,10 @@ class EpisodeParams:
         (randomization keys, e.g. {"friction_scale": 1.3}) replace the drawn ones."""
         return cls.from_values(spec, {**cls.draw_values(spec, seed), **(pinned or {})})
 
+    def friction_free(self) -> EpisodeParams:
+        """The same episode on the friction-free twin (LuGreParams.friction_free on every joint)."""
+        return replace(self, friction=tuple(f.friction_free() for f in self.friction))
+
     def validate(self, spec: PlantSpec) -> None:
         """Reject unphysical values and (σ, J, h, integrator) combinations outside the admissible region."""
         names = friction_joints(spec)

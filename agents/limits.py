@@ -1,0 +1,94 @@
+"""The physical-limit references: two rows the leaderboard runs on every episode beside Zero, never ranked.
+
+Each scenario declares its uncompensated loop (`benchmark.uncompensated`, e.g. PD on Kang's rotor):
+
+- `Ideal`: that loop on the friction-free twin of the same episode (scenario key nonlinear_friction
+  false): every draw the same, the Coulomb, static, Stribeck and presliding friction and the asymmetry
+  bias removed; the viscous term stays, it is part of the linear plant the loop is designed on.
+- `Oracle`: that loop plus the true nonlinear friction torque of the episode, read at each control
+  instant and held over the period (through the drive's own delay): a perfect friction observer with the
+  loop's own sampling, reflected to the drive joint through the belt ratios and divided by the episode's
+  true actuator gain; the sum of loop and compensation is clipped as any action is.
+
+What the loop would do without friction (Ideal) is the reference of the leaderboard's score g
+(agents/leaderboard.py); the Oracle shows how much of it a perfect friction estimate recovers.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import ClassVar
+
+import numpy as np
+
+from frictiongym.envs.plants.mjcf import friction_joints
+from frictiongym.envs.plants.params import EpisodeParams
+from frictiongym.envs.scenario import Scenario
+
+from .base import Controller, EpisodeContext
+
+
+class LimitReference(Controller):
+    """The scenario's uncompensated loop (built by `make_loop` from its name), with this row's change."""
+
+    def __init__(self, make_loop: Callable[[str], Controller]):
+        self._make_loop = make_loop
+        self._loops: dict[str, Controller] = {}
+        self.loop: Controller | None = None
+
+    def loop_of(self, scenario: Scenario) -> Controller:
+        """The uncompensated loop of the scenario (one instance per loop name, kept)."""
+        name = scenario.uncompensated
+        if name not in self._loops:
+            self._loops[name] = self._make_loop(name)
+        return self._loops[name]
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        return self.loop_of(scenario).why_not(scenario)
+
+    def plant_overrides(self, scenario: Scenario) -> dict:
+        return self.loop_of(scenario).plant_overrides(scenario)
+
+    def reset(self, ctx: EpisodeContext) -> None:
+        self.loop = self.loop_of(ctx.scenario)
+        self.loop.reset(ctx)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        return self.loop.act(obs)
+
+    def params(self) -> dict:
+        return {"uncompensated": self.loop.name if self.loop is not None else None}
+
+
+class Ideal(LimitReference):
+    """The uncompensated loop on the friction-free twin of the episode (module docstring)."""
+
+    name: ClassVar[str] = "Ideal"
+
+    def scenario_overrides(self) -> dict:
+        return {"nonlinear_friction": False}
+
+
+class Oracle(LimitReference):
+    """The uncompensated loop plus the episode's true nonlinear friction torque (module docstring)."""
+
+    name: ClassVar[str] = "Oracle"
+    reads_truth: ClassVar[bool] = True
+
+    def reset(self, ctx: EpisodeContext) -> None:
+        super().reset(ctx)
+        sc = ctx.scenario
+        spec = sc.spec
+        ratios = spec.kinematic_ratios()  # belt-coupled joints; a shaft-coupled load turns with its motor
+        drive = ratios.get(spec.actuator_joint, 1.0)
+        self.ratio = np.array([ratios.get(j, drive) / drive for j in friction_joints(spec)])
+        self.action_scale = sc.action_scale
+        self.compensation = 0.0  # command units (V or N·m)
+
+    def observe_truth(self, truth: dict[str, np.ndarray], params: EpisodeParams) -> None:
+        torque = float(np.dot(self.ratio, truth["nonlinear_friction_torque"]))  # at the drive joint, N·m
+        self.compensation = -torque / params.actuator_gain
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        a = self.loop.act(obs)
+        return np.asarray(a, dtype=float) + self.compensation / self.action_scale
