@@ -152,6 +152,10 @@ EPISODE_STATE = (
     "jitter_rng",
     "diverged",
     "ended",
+    "ref",  # an episode's own reference and load torque (type random), and the fast path's copies
+    "disturbance",
+    "_ref",
+    "_disturbance",
 )
 
 
@@ -189,9 +193,18 @@ class ServoCore:
         self.lc_min_amp = res if spec.sensors[sc.tracked_sensor].kind == "encoder" else 1e-3 * sc.output_scale
         T = sc.episode_steps
         self.t = np.arange(T + 1) * sc.control_period
-        self.ref = sc.reference(np.arange(T + 1 + sc.preview_steps) * sc.control_period)
-        # load torque (N·m) held over the period that starts at t_k
-        self.disturbance = sc.disturbance(self.t[:-1]) if sc.disturbance is not None else None
+        self.t_ref = np.arange(T + 1 + sc.preview_steps) * sc.control_period  # with the preview
+        # reference (n or 1 rows: one per simulation when each episode draws its own) and the load
+        # torque (N·m) held over the period that starts at t_k; rows[i] is simulation i's row
+        self.per_episode = sc.reference.per_episode
+        self.rows = np.arange(n) if self.per_episode else np.zeros(n, dtype=int)
+        if self.per_episode:
+            self.ref = np.zeros((n, len(self.t_ref)))
+            loaded = sc.reference.family.load_torque > 0
+            self.disturbance = np.zeros((n, T)) if loaded else None
+        else:
+            self.ref = sc.reference(self.t_ref)[None, :]
+            self.disturbance = sc.disturbance(self.t[:-1])[None, :] if sc.disturbance is not None else None
         # per-simulation episode state
         self.k = np.zeros(n, dtype=int)
         self.prev_action = np.zeros(n)
@@ -212,11 +225,11 @@ class ServoCore:
         self._fast = (
             n == 1 and not batch and not sc.history and not sc.privileged and not self.sensors.any_ripple
         )
-        self._ref = self.ref.tolist()
+        self._ref = self.ref[0].tolist()
         self._fric = [(int(a), int(d)) for a, d in zip(self.fric_act, self.fric_dofs, strict=True)]
         self._row_views()
         self._t = self.t.tolist()
-        self._disturbance = self.disturbance.tolist() if self.disturbance is not None else None
+        self._disturbance = self.disturbance[0].tolist() if self.disturbance is not None else None
         self._substeps = spec.substeps
         self._window = sc.preview_steps + 1  # samples of the reference in the observation
         self._sens = [
@@ -290,6 +303,15 @@ class ServoCore:
             self.noise_scale[i] = p.noise_scale
             self.sigma2[i] = [f.sigma2 if spec.friction_model == "lugre" else 0.0 for f in p.friction]
             self.delay_steps[i], self.jitter_steps[i] = p.delay_steps(spec), p.jitter_steps(spec)
+        if self.per_episode:  # each episode's own reference (and load torque), from its seed
+            for i, seed in zip(ids, seeds, strict=True):
+                r, load = self.sc.reference.episode(seed, self.t_ref)
+                self.ref[i] = r
+                if self.disturbance is not None:
+                    self.disturbance[i] = load[: self.disturbance.shape[1]]
+            if self._fast:
+                self._ref = self.ref[0].tolist()
+                self._disturbance = self.disturbance[0].tolist() if self.disturbance is not None else None
         self.k[ids] = 0
         self.prev_action[ids] = 0.0
         self.hist[ids] = 0.0
@@ -315,14 +337,16 @@ class ServoCore:
         if len(jittered):
             j = np.array([self.jitter_rng[i].integers(0, self.jitter_steps[i] + 1) for i in jittered])
             self.backend.set_delay(jittered, (self.delay_steps[jittered] + j) * self.sc.spec.timestep)
-        dist = self.disturbance[self.k[ids]] if self.disturbance is not None else None
+        rows = self.rows[ids]
+        dist = self.disturbance[rows, self.k[ids]] if self.disturbance is not None else None
         self.diverged[ids] |= self.backend.step(ids, command, dist)
         self.k[ids] += 1
         k = self.k[ids]
         a_prev = self.prev_action[ids].copy()
         self.prev_action[ids] = a  # the observation shows the command now being held
         obs, truth = self._observe(ids)
-        e = (truth - self.ref[k]) / self.sc.output_scale
+        ref = self.ref[rows, k]
+        e = (truth - ref) / self.sc.output_scale
         terms = reward_terms(e, a, a_prev, self.sc.reward_weights, ARRAY)
         reward = reward_total(terms)
         diverged = self.diverged[ids]
@@ -332,7 +356,7 @@ class ServoCore:
         terminated = diverged.copy()
         truncated = (k >= self.sc.episode_steps) & ~terminated
         self.ended[ids] = terminated | truncated
-        info = step_info(terms, command, self.ref[k], truth, self.t[k], diverged.copy())
+        info = step_info(terms, command, ref, truth, self.t[k], diverged.copy())
         return obs, reward, terminated, truncated, info
 
     def step_single(self, action: float) -> tuple[np.ndarray, float, bool, bool, dict]:
@@ -420,7 +444,7 @@ class ServoCore:
         sc = self.sc
         inv = 1.0 / sc.output_scale
         ns, n = self.nsensor, len(ids)
-        window = self.ref[k[:, None] + self.preview_offsets] * inv
+        window = self.ref[self.rows[ids][:, None], k[:, None] + self.preview_offsets] * inv
         parts = {
             "sensors": meas * inv,
             "reference": window[:, :1],
@@ -487,7 +511,7 @@ class ServoCore:
         k = self.k[i] + 1
         return {
             "t": self.t[:k],
-            "reference": self.ref[:k],
+            "reference": self.ref[self.rows[i], :k],
             "output": self.log_y[i, :k],
             "command": self.log_u[i, :k],
             "velocity": self.log_v[i, :k],

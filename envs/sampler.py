@@ -15,6 +15,7 @@ from .config import integer
 
 # Names of the non-parameter streams (parameters use their randomization key as the name).
 INITIAL_STATE, SENSOR_NOISE, JITTER = "initial_state", "sensor_noise", "jitter"
+REFERENCE, DRIFT = "reference", "friction_drift"  # per-episode references, friction drift
 
 
 def check_seed(seed: object, field: str = "seed") -> int:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import itertools
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from functools import cached_property
@@ -25,9 +26,12 @@ from .friction import FRICTION_MODELS
 from .metrics import METRIC_NAMES
 from .plants import PlantSpec, plant_names, plant_spec
 from .plants.mjcf import friction_joints
+from .references import SEGMENT_KINDS, RandomReference
+from .sampler import REFERENCE as REFERENCE_STREAM
+from .sampler import stream
 from .step import ObservationLayout, observation_layout
 
-REFERENCE_TYPES = ("constant", "steps", "ramps", "sine", "triangle", "trapezoid", "recorded")
+REFERENCE_TYPES = ("constant", "steps", "ramps", "sine", "triangle", "trapezoid", "recorded", "random")
 DEFAULTS = "_defaults"  # configs/scenarios/_defaults.yaml, which every scenario extends
 MAX_EPISODE_S = 3600.0  # one hour of simulated time
 MAX_EPISODE_STEPS = 1_000_000  # the per-episode logs hold 3 floats per step and simulation
@@ -64,6 +68,7 @@ class Reference:
       recording's first sample; a log at the control rate replays sample for sample): `signal` of the log
       `file` (envs/recorded.py: a .mat or CSV, a path relative to configs/ or absolute), time in
       `time_signal`.
+    - random: drawn per episode from its seed (envs/references.py, `family`): `episode(seed, t)`.
     """
 
     type: str
@@ -79,6 +84,16 @@ class Reference:
     signal: str = ""
     time_signal: str = ""
     scale: float = 1.0
+    family: RandomReference | None = None
+
+    @property
+    def per_episode(self) -> bool:
+        """Whether each episode draws its own reference (type random)."""
+        return self.family is not None
+
+    def episode(self, seed: int, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(reference, load torque N·m) of the episode `seed` on the grid t (type random)."""
+        return self.family.draw(stream(seed, REFERENCE_STREAM), t)
 
     def samples(self) -> tuple[np.ndarray, np.ndarray]:
         """A recorded reference's sample times (s, from 0) and values (scaled)."""
@@ -111,6 +126,8 @@ class Reference:
 
     def __call__(self, t: np.ndarray | float) -> np.ndarray:
         t = np.asarray(t, dtype=float)
+        if self.per_episode:
+            raise ValueError("a random reference is drawn per episode: Reference.episode(seed, t)")
         if self.type == "constant":
             return np.full_like(t, self.value)
         if self.type == "steps":
@@ -240,8 +257,9 @@ def _schedule(r: Node, lim: Limits, rates: bool = False) -> tuple[tuple[float, f
     return tuple(pairs)
 
 
-def _reference(r: Node, lim: Limits) -> tuple[Reference, int]:
-    """The reference generator and its preview length (steps), every parameter within `lim`."""
+def _reference(r: Node, lim: Limits, load_limit: float = 0.0) -> tuple[Reference, int]:
+    """The reference generator and its preview length (steps), every parameter within `lim` (a random
+    reference's load torque within load_limit, N·m: 0 on a plant without a disturbance motor)."""
     kind = r.choice("type", REFERENCE_TYPES)
     preview = r.integer("preview_steps", 0, 1000, default=0)
     offset = r.number("offset", -lim.value, lim.value, default=0.0) if kind != "constant" else 0.0
@@ -273,6 +291,8 @@ def _reference(r: Node, lim: Limits) -> tuple[Reference, int]:
                 "signal", f"the recording moves at {rate:.6g}/s, beyond the envelope's {lim.rate}/s"
             )
         return ref, preview
+    if kind == "random":
+        return _random(r, lim, load_limit), preview
     if kind == "trapezoid":
         ref = Reference(
             "trapezoid",
@@ -298,6 +318,31 @@ def _reference(r: Node, lim: Limits) -> tuple[Reference, int]:
     if abs(ref.offset) + ref.amplitude > lim.value:
         raise r.error("amplitude", f"|offset| + amplitude = {abs(ref.offset) + ref.amplitude} > {lim.value}")
     return ref, preview
+
+
+def _random(r: Node, lim: Limits, load_limit: float) -> Reference:
+    """A random reference family (envs/references.py) within the limits."""
+    kinds = r["segments"]
+    if not isinstance(kinds, list) or not kinds or any(k not in SEGMENT_KINDS for k in kinds):
+        raise r.error("segments", f"expected a non-empty list of segment kinds from {list(SEGMENT_KINDS)}")
+    seg = r.interval("segment_s", 1e-3, MAX_EPISODE_S)
+    if seg[0] <= 0:
+        raise r.error("segment_s", "segments must last longer than 0 s")
+    family = RandomReference(
+        kinds=tuple(kinds),
+        segment_s=seg,
+        amplitude=r.positive("amplitude", lim.value),
+        speeds=r.interval("speeds", 0.0, lim.rate),
+        max_acceleration=r.positive("max_acceleration", lim.accel),
+        frequency_hz=r.interval("frequency_hz", MIN_FREQUENCY_HZ, lim.f_max),
+        load_torque=r.nonneg("load_torque", math.inf, default=0.0),
+    )
+    if family.load_torque > load_limit:
+        why = "the plant has no disturbance motor" if load_limit == 0 else f"beyond {load_limit} N·m"
+        raise r.error("load_torque", f"{family.load_torque} N·m: {why}")
+    if family.speeds[0] <= 0 and any(k in kinds for k in ("ramp", "sine", "trapezoid", "reversal")):
+        raise r.error("speeds", "moving segments need speeds above 0")
+    return Reference("random", family=family)
 
 
 def _deep_update(base: dict, extra: Mapping) -> dict:
@@ -407,7 +452,8 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
         raise c.error("episode_s", f"{episode} must be a whole number of control periods ({period})")
     if steps > MAX_EPISODE_STEPS:
         raise c.error("episode_s", f"{steps} control periods > {MAX_EPISODE_STEPS}")
-    reference, preview = _reference(c.section("reference"), Limits.of_output(spec, tracked))
+    load_limit = Limits.of_load_torque(spec).value if spec.disturbance_joint is not None else 0.0
+    reference, preview = _reference(c.section("reference"), Limits.of_output(spec, tracked), load_limit)
     init = c.section("initial_state")
     n_init = 1 if spec.belts else len(spec.joints)
     obs, rw = c.section("observation"), c.section("reward")
@@ -433,6 +479,8 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
     if c.get("disturbance") is not None:
         if spec.disturbance_joint is None:
             raise c.error("disturbance", f"plant {spec.name} has no disturbance motor")
+        if reference.per_episode and reference.family.load_torque > 0:
+            raise c.error("disturbance", "a random reference with a load_torque draws its own load torque")
         load = Limits.of_load_torque(spec)
         scenario = replace(scenario, disturbance=_reference(c.section("disturbance"), load)[0])
     for key, ref in (("reference", scenario.reference), ("disturbance", scenario.disturbance)):

@@ -83,7 +83,7 @@ def test_script_writes_markdown_csv_and_plots(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "## kang_regulation_20deg" in proc.stdout
     rows = list(csv.DictReader((tmp_path / "leaderboard.csv").read_text().splitlines()))
-    assert {r["controller"] for r in rows} == {"Zero", "PD", "PID"}
+    assert {r["controller"] for r in rows} == {"Zero", "Ideal", "Oracle", "PD", "PID"}
     episodes = list(csv.DictReader((tmp_path / "episodes.csv").read_text().splitlines()))
     assert {(r["controller"], r["scenario"]) for r in episodes} >= {
         ("PD", "kang_regulation_20deg"),
@@ -92,6 +92,8 @@ def test_script_writes_markdown_csv_and_plots(tmp_path):
     assert (tmp_path / "leaderboard.md").read_text().startswith("# frictiongym leaderboard")
     for png in ("scores.png", "aggregate_iqm.png", "performance_profile.png"):
         assert (tmp_path / png).stat().st_size > 5000
+    agg = list(csv.DictReader((tmp_path / "aggregate.csv").read_text().splitlines()))
+    assert {r["plant"] for r in agg} >= {"kang_robot", "m220"}
     assert (tmp_path / "response_kang_regulation_20deg.png").stat().st_size > 5000
 
 
@@ -102,9 +104,10 @@ def test_every_classical_baseline_beats_zero_and_the_limits_bound_the_loop(suite
     metric (mean over the suite's episodes; flexible_zero_speed passes through its load torque). Where
     the scenario scores the friction penalty (limit_score not none), the friction-free loop (Ideal) and
     the perfect friction observer (Oracle) beat the uncompensated loop, and the penalty is what the YAML
-    declares: positive, and for a log score the friction-free loop's error is ~0 (below 1 % of the
-    settling band). Where it is not scored, friction helps the loop (negative penalty) and the Oracle, which
-    cancels it, does not beat the loop either. (The `test` suite is touched once, for the final numbers.)"""
+    declares: above 5 %, and for a log score the friction-free loop's error is ~0 (below 1 % of the
+    settling band). Where it is not scored, the penalty is below 5 %, and where it is negative (friction
+    helps the loop) the Oracle, which cancels it, does not beat the loop either. (The `test` suite is
+    touched once, for the final numbers.)"""
     results, table = leaderboard.run(suite, list(registry.BUILTIN), None, progress=False, workers=2)
     for sc, rows in table.items():
         s = load_scenario(sc)
@@ -114,7 +117,9 @@ def test_every_classical_baseline_beats_zero_and_the_limits_bound_the_loop(suite
                 assert r["main"][0] < main["Zero"], (sc, r["controller"], r["main"][0], main["Zero"])
         loop, pen = main[s.uncompensated], leaderboard.penalty(results, s)
         if s.limit_score == "none":
-            assert pen < 0 and main["Oracle"] > loop, (sc, pen, main["Oracle"], loop)
+            assert pen < 0.05, (sc, pen)
+            if pen < 0:  # friction helps the loop: the Oracle, which cancels it, is worse
+                assert main["Oracle"] > loop, (sc, pen, main["Oracle"], loop)
             continue
         assert pen > 0.05 and main["Ideal"] < loop and main["Oracle"] < loop, (sc, pen, main)
         near_zero = main["Ideal"] < 0.01 * s.settle_band
