@@ -42,7 +42,7 @@ from frictiongym.envs.plants.spec import RANDOMIZATION_KEYS
 from frictiongym.envs.records import atomic_text, atomic_write, command_line, csv_text
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.servo_env import ServoEnv
-from frictiongym.envs.suites import load_suite
+from frictiongym.envs.suites import load_suite, suite_held_out
 
 from .base import Controller, EpisodeContext
 from .engine import init_worker, provenance
@@ -162,7 +162,12 @@ def load_config(path: str | Path, scenario: str | None = None) -> list[RunConfig
 
 
 def _run_config(c: Node, name: str, algo: str, scenario: str, source: str) -> RunConfig:
-    load_scenario(scenario)  # an unknown scenario is an error naming the available ones
+    if load_scenario(scenario).held_out:  # (an unknown scenario is an error naming the available ones)
+        raise ConfigError(
+            f"scenarios.{scenario}",
+            "is a held-out (generalisation) scenario: it is never trained or selected on",
+            source,
+        )
     r = c.section("randomization")
     ranges = {}
     for key in list(r.keys()):
@@ -417,8 +422,11 @@ class Baseline:
     limit_cycle_amp: float
 
 
-def validation_episodes(scenario: str) -> list:
-    return [e for e in load_suite(VALIDATION_SUITE) if e.scenario == scenario]
+def validation_episodes(scenario: str, suite: str = VALIDATION_SUITE) -> list:
+    """The selection episodes of a scenario: never from a held-out suite."""
+    if suite_held_out(suite):
+        raise ConfigError("suite", f"{suite} is held out: models are never selected on it")
+    return [e for e in load_suite(suite) if e.scenario == scenario]
 
 
 def evaluate_controller(controller: Controller, episodes: list, envs: EnvCache) -> dict[str, float]:

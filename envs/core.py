@@ -19,7 +19,7 @@ from .friction import joint_friction_torque
 from .metrics import episode_metrics
 from .plants.mjcf import to_mjcf
 from .plants.params import EpisodeParams, ModelIndex, apply, apply_batch
-from .sampler import INITIAL_STATE, JITTER, SENSOR_NOISE, stream
+from .sampler import DRIFT, INITIAL_STATE, JITTER, SENSOR_NOISE, stream
 from .scenario import Scenario
 from .sensors import SensorArrays
 from .step import (
@@ -81,6 +81,11 @@ class SingleBackend:
     def set_delay(self, ids: np.ndarray, delay: np.ndarray) -> None:
         self.model.actuator_delay[self.idx.drive] = delay[0]
 
+    def set_levels(self, ids: np.ndarray, levels: np.ndarray) -> None:
+        """Friction levels (n, n_friction, [fc, fs, bias]) of the LuGre elements, N·m (drift)."""
+        bp, f = self.model.actuator_biasprm, list(self.idx.friction)
+        bp[f, 3], bp[f, 4], bp[f, 0] = levels[0, :, 0], levels[0, :, 1], levels[0, :, 2]
+
     def step(self, ids: np.ndarray, command: np.ndarray, disturbance: np.ndarray | None) -> np.ndarray:
         """Advance simulations ids one control period (command, and the load torque if any, held over
         it); returns their 'diverged' flags."""
@@ -107,6 +112,7 @@ class BatchBackend:
         self.act = self.batch.bind("act")
         self.force = self.batch.bind("actuator_force")
         self.delay = self.batch.expand("actuator_delay")
+        self.biasprm: np.ndarray | None = None  # expanded when friction drifts
         self.failed = np.zeros(n, dtype=bool)
 
     def apply(self, ids: np.ndarray, params: list[EpisodeParams]) -> None:
@@ -120,6 +126,13 @@ class BatchBackend:
 
     def set_delay(self, ids: np.ndarray, delay: np.ndarray) -> None:
         self.delay[ids, self.idx.drive] = delay
+
+    def set_levels(self, ids: np.ndarray, levels: np.ndarray) -> None:
+        if self.biasprm is None:
+            self.biasprm = self.batch.expand("actuator_biasprm")
+        rows, f = ids[:, None], np.array(self.idx.friction)[None, :]
+        bp = self.biasprm
+        bp[rows, f, 3], bp[rows, f, 4], bp[rows, f, 0] = levels[:, :, 0], levels[:, :, 1], levels[:, :, 2]
 
     def step(self, ids: np.ndarray, command: np.ndarray, disturbance: np.ndarray | None) -> np.ndarray:
         self.ctrl[ids, self.idx.drive_ctrl] = command
@@ -156,6 +169,10 @@ EPISODE_STATE = (
     "disturbance",
     "_ref",
     "_disturbance",
+    "drift",  # friction drift: λ per period and the episode's base levels, and the fast path's copies
+    "levels",
+    "_drift",
+    "_levels",
 )
 
 
@@ -205,6 +222,12 @@ class ServoCore:
         else:
             self.ref = sc.reference(self.t_ref)[None, :]
             self.disturbance = sc.disturbance(self.t[:-1])[None, :] if sc.disturbance is not None else None
+        # friction drift: λ per control period and the episode's base [fc, fs, bias] per frictional joint
+        nf = len(self.fric_act)
+        self.drift = np.ones((n, T)) if sc.friction_drift is not None else None
+        self.levels = np.zeros((n, nf, 3))
+        self._drift: list[float] | None = None
+        self._levels: list[tuple[int, float, float, float]] = []
         # per-simulation episode state
         self.k = np.zeros(n, dtype=int)
         self.prev_action = np.zeros(n)
@@ -303,6 +326,19 @@ class ServoCore:
             self.noise_scale[i] = p.noise_scale
             self.sigma2[i] = [f.sigma2 if spec.friction_model == "lugre" else 0.0 for f in p.friction]
             self.delay_steps[i], self.jitter_steps[i] = p.delay_steps(spec), p.jitter_steps(spec)
+        for i, p in zip(ids, params, strict=True):
+            self.levels[i] = [(f.fc, f.fs, f.bias) for f in p.friction] or np.zeros((0, 3))
+        if self.drift is not None:  # each episode's own drift, from its seed
+            period_starts = self.t[:-1]
+            for i, seed in zip(ids, seeds, strict=True):
+                rng = stream(seed, DRIFT)
+                self.drift[i] = self.sc.friction_drift.draw(rng, period_starts, float(self.t[-1]))
+            if self._fast:
+                self._drift = self.drift[0].tolist()
+                self._levels = [
+                    (int(a), float(fc), float(fs), float(b))
+                    for a, (fc, fs, b) in zip(self.fric_act, self.levels[0], strict=True)
+                ]
         if self.per_episode:  # each episode's own reference (and load torque), from its seed
             for i, seed in zip(ids, seeds, strict=True):
                 r, load = self.sc.reference.episode(seed, self.t_ref)
@@ -339,6 +375,8 @@ class ServoCore:
             self.backend.set_delay(jittered, (self.delay_steps[jittered] + j) * self.sc.spec.timestep)
         rows = self.rows[ids]
         dist = self.disturbance[rows, self.k[ids]] if self.disturbance is not None else None
+        if self.drift is not None:  # the levels over this period
+            self.backend.set_levels(ids, self.levels[ids] * self.drift[ids, self.k[ids]][:, None, None])
         self.diverged[ids] |= self.backend.step(ids, command, dist)
         self.k[ids] += 1
         k = self.k[ids]
@@ -381,6 +419,10 @@ class ServoCore:
         b.ctrl[self.idx.drive_ctrl] = command
         if self._disturbance is not None:
             b.ctrl[self.idx.disturbance_ctrl] = self._disturbance[int(self.k[0])]
+        if self._drift is not None:  # the levels over this period, as set_levels
+            lam, bp = self._drift[int(self.k[0])], b.model.actuator_biasprm
+            for act, fc, fs, bias in self._levels:
+                bp[act, 3], bp[act, 4], bp[act, 0] = fc * lam, fs * lam, bias * lam
         mujoco.mj_step(b.model, b.data, self._substeps)
         diverged = b.warned()  # it was False: a diverged episode has ended, and stepping it raised above
         self.diverged[0] = diverged
@@ -478,7 +520,11 @@ class ServoCore:
         """True states of simulation i (or one row per simulation of a slice): joint angles (rad) and
         velocities (rad/s), bristle deflections (rad), friction torques (N·m), and their nonlinear part
         (N·m: -(σ0·z + σ1·ż) + b, friction_torque without the viscous -σ2·v; what the friction-free twin
-        removes), one per frictional joint."""
+        removes), one per frictional joint; and the friction levels over the period that starts now
+        (coulomb_level, static_level, N·m per frictional joint, and friction_scale, the drift's λ: 1
+        without drift)."""
+        lam, levels = self.current_levels(i)
+        now = {"coulomb_level": levels[..., 0], "static_level": levels[..., 1], "friction_scale": lam}
         if self._fast:  # the same values from the MjData, with plain indices
             b = self.backend
             qv, f, s2 = b.qvel, b.force, self.sigma2[0]
@@ -490,6 +536,7 @@ class ServoCore:
                     [joint_friction_torque(f[a], s2[j], qv[dof]) for j, (a, dof) in enumerate(self._fric)]
                 ),
                 "nonlinear_friction_torque": f[self.fric_act],
+                **now,
             }
         qpos, qvel, act, force = self.backend.state()
         qv = qvel[i]
@@ -501,7 +548,15 @@ class ServoCore:
                 force[i, self.fric_act], self.sigma2[i], qv[..., self.fric_dofs]
             ),
             "nonlinear_friction_torque": force[i, self.fric_act],
+            **now,
         }
+
+    def current_levels(self, i: int | slice) -> tuple[np.ndarray, np.ndarray]:
+        """(λ, [fc, fs, bias] per frictional joint, N·m) of simulation i (or a slice) over the period that
+        starts now: the episode's drawn levels times the drift's λ (1 without drift)."""
+        k = np.minimum(self.k[i], self.sc.episode_steps - 1)
+        lam = self.drift[np.arange(self.n)[i], k] if self.drift is not None else np.ones(np.shape(k))
+        return lam, self.levels[i] * np.asarray(lam)[..., None, None]
 
     def params_dict(self, i: int) -> dict:
         return asdict(self.params[i])

@@ -131,6 +131,25 @@ class LuGreParams:
             )
 
 
+@dataclass(frozen=True)
+class FrictionDrift:
+    """Friction that drifts within an episode (temperature, wear) and changes once (lubrication): the
+    Coulomb, static and bias levels of every frictional joint are scaled, over the control period that
+    starts at t, by λ(t) = (1 + drift·t/T)·(1 + step·[t >= step_at]), T the episode's length; drift, step
+    and step_at are drawn per episode (fractions, s). The σ's and the Stribeck velocity do not change."""
+
+    drift: tuple[float, float]
+    step: tuple[float, float]
+    step_at_s: tuple[float, float]
+
+    def draw(self, rng: np.random.Generator, t: np.ndarray, episode_s: float) -> np.ndarray:
+        """λ at the period starts t (s) of one episode."""
+        a = float(rng.uniform(*self.drift))
+        s = float(rng.uniform(*self.step))
+        at = float(rng.uniform(*self.step_at_s))
+        return (1.0 + a * (t / episode_s)) * np.where(t >= at, 1.0 + s, 1.0)
+
+
 # Admissible region of the integrators for the bristle dynamics (docs/physics.md, "Numerics").
 # Euler/RK4 are explicit in the bristle force: the bristle spring-damper (σ0, σ1) on the joint
 # inertia J must be resolved, h·sqrt(σ0/J) <= 0.2 and h·σ1/J <= 0.5 (Euler diverges near 2;

@@ -22,7 +22,7 @@ import numpy as np
 
 from . import recorded
 from .config import ConfigError, Node, interval, load_yaml, merge, number, preset_names, preset_path
-from .friction import FRICTION_MODELS
+from .friction import FRICTION_MODELS, FrictionDrift
 from .metrics import METRIC_NAMES
 from .plants import PlantSpec, plant_names, plant_spec
 from .plants.mjcf import friction_joints
@@ -31,7 +31,18 @@ from .sampler import REFERENCE as REFERENCE_STREAM
 from .sampler import stream
 from .step import ObservationLayout, observation_layout
 
-REFERENCE_TYPES = ("constant", "steps", "ramps", "sine", "triangle", "trapezoid", "recorded", "random")
+REFERENCE_TYPES = (
+    "constant",
+    "steps",
+    "ramps",
+    "sine",
+    "triangle",
+    "chirp",
+    "trapezoid",
+    "scurve",
+    "recorded",
+    "random",
+)
 DEFAULTS = "_defaults"  # configs/scenarios/_defaults.yaml, which every scenario extends
 MAX_EPISODE_S = 3600.0  # one hour of simulated time
 MAX_EPISODE_STEPS = 1_000_000  # the per-episode logs hold 3 floats per step and simulation
@@ -61,9 +72,13 @@ class Reference:
     - steps: schedule of [t_start, value] (0 before the first).
     - ramps: offset plus the integral of a piecewise-constant rate, schedule of [t_start, rate per s].
     - sine, triangle: offset + amplitude·wave(2π·frequency_hz·t + phase_rad).
+    - chirp: offset + amplitude·sin(φ(t)), the frequency swept linearly from frequency_hz to
+      end_frequency_hz over sweep_s (then held).
     - trapezoid: point-to-point moves from offset, schedule of [t_start, target], each with a trapezoidal
       velocity profile limited by max_velocity and max_acceleration (units per s, per s²), finished
       before the next starts.
+    - scurve: the same moves with an S-curve (cycloidal) profile, s(τ) = d·(τ/T - sin(2πτ/T)/(2π)):
+      continuous acceleration, peak velocity 2d/T and peak acceleration 2πd/T² within the limits.
     - recorded: a measured signal replayed, scale·x(t), each sample held until the next (t from the
       recording's first sample; a log at the control rate replays sample for sample): `signal` of the log
       `file` (envs/recorded.py: a .mat or CSV, a path relative to configs/ or absolute), time in
@@ -84,6 +99,8 @@ class Reference:
     signal: str = ""
     time_signal: str = ""
     scale: float = 1.0
+    end_frequency_hz: float = 0.0
+    sweep_s: float = 0.0
     family: RandomReference | None = None
 
     @property
@@ -102,24 +119,33 @@ class Reference:
         return t - t[0], self.scale * rec.signal(self.signal)
 
     def move_duration(self, distance: float) -> float:
-        """Duration (s) of a trapezoidal move over distance (triangular if it never reaches v_max)."""
+        """Duration (s) of a move over distance: trapezoidal (triangular if it never reaches v_max), or
+        S-curve (the shortest cycloid within v_max and a_max)."""
         v, a = self.max_velocity, self.max_acceleration
+        if self.type == "scurve":
+            return max(2.0 * distance / v, np.sqrt(2.0 * np.pi * distance / a))
         return distance / v + v / a if distance >= v * v / a else 2.0 * np.sqrt(distance / a)
+
+    def _profile(self, d: float, tau: np.ndarray) -> np.ndarray:
+        """Distance covered τ (s, clipped to the move) into a move of length d."""
+        v, a = self.max_velocity, self.max_acceleration
+        T = self.move_duration(d)
+        tau = np.clip(tau, 0.0, T)
+        if self.type == "scurve":
+            return d * (tau / T - np.sin(2 * np.pi * tau / T) / (2 * np.pi)) if T > 0 else np.zeros_like(tau)
+        ta = min(v / a, np.sqrt(d / a))  # acceleration phase
+        vp = a * ta  # peak velocity
+        return np.where(
+            tau < ta,
+            0.5 * a * tau**2,
+            np.where(tau <= T - ta, 0.5 * a * ta**2 + vp * (tau - ta), d - 0.5 * a * (T - tau) ** 2),
+        )
 
     def _moves(self, t: np.ndarray) -> np.ndarray:
         out = np.full_like(t, self.offset)
-        v, a, start = self.max_velocity, self.max_acceleration, self.offset
+        start = self.offset
         for ts, target in self.schedule:
-            d = abs(target - start)
-            T = self.move_duration(d)
-            tau = np.clip(t - ts, 0.0, T)
-            ta = min(v / a, np.sqrt(d / a))  # acceleration phase
-            vp = a * ta  # peak velocity
-            s = np.where(
-                tau < ta,
-                0.5 * a * tau**2,
-                np.where(tau <= T - ta, 0.5 * a * ta**2 + vp * (tau - ta), d - 0.5 * a * (T - tau) ** 2),
-            )
+            s = self._profile(abs(target - start), t - ts)
             out = np.where(t >= ts, start + np.sign(target - start) * s, out)
             start = target
         return out
@@ -134,8 +160,13 @@ class Reference:
             starts = np.array([s for s, _ in self.schedule])
             values = np.array([0.0] + [v for _, v in self.schedule])
             return values[np.searchsorted(starts, t + 1e-12, side="right")]
-        if self.type == "trapezoid":
+        if self.type in ("trapezoid", "scurve"):
             return self._moves(t)
+        if self.type == "chirp":  # phase of a linear sweep, then the end frequency
+            f0, f1, T = self.frequency_hz, self.end_frequency_hz, self.sweep_s
+            ts = np.minimum(t, T)
+            phase = 2 * np.pi * (f0 * ts + 0.5 * (f1 - f0) / T * ts**2 + f1 * (t - ts))
+            return self.offset + self.amplitude * np.sin(phase + self.phase_rad)
         if self.type == "recorded":  # the last sample at or before t (clock jitter up to 1 % of a period)
             ts, x = self.samples()
             slack = 0.01 * float(np.median(np.diff(ts)))
@@ -180,6 +211,8 @@ class Scenario:
     # False: the friction-free twin: every draw the same, the nonlinear friction (Coulomb, static,
     # Stribeck, presliding, asymmetry bias) removed, the viscous term kept (EpisodeParams.friction_free)
     nonlinear_friction: bool = True
+    friction_drift: FrictionDrift | None = None  # friction levels that drift within an episode
+    held_out: bool = False  # a generalisation scenario: never trained or selected on (agents/training.py)
     uncompensated: str = ""  # name of the loop the physical-limit rows build on (benchmark.uncompensated)
     limit_score: str = "linear"  # how the friction penalty removed is scored (benchmark.limit_score)
 
@@ -293,9 +326,25 @@ def _reference(r: Node, lim: Limits, load_limit: float = 0.0) -> tuple[Reference
         return ref, preview
     if kind == "random":
         return _random(r, lim, load_limit), preview
-    if kind == "trapezoid":
+    if kind == "chirp":
         ref = Reference(
-            "trapezoid",
+            "chirp",
+            amplitude=r.nonneg("amplitude", lim.value),
+            frequency_hz=r.number("frequency_hz", MIN_FREQUENCY_HZ, lim.f_max),
+            end_frequency_hz=r.number("end_frequency_hz", MIN_FREQUENCY_HZ, lim.f_max),
+            sweep_s=r.positive("sweep_s", lim.t_max),
+            offset=offset,
+            phase_rad=r.number("phase_rad", -2 * np.pi, 2 * np.pi, default=0.0),
+        )
+        w = 2 * np.pi * max(ref.frequency_hz, ref.end_frequency_hz)
+        if abs(ref.offset) + ref.amplitude > lim.value:
+            raise r.error("amplitude", f"|offset| + amplitude > {lim.value}")
+        if ref.amplitude * w > lim.rate or ref.amplitude * w * w > lim.accel:
+            raise r.error("amplitude", "the sweep's peak rate or acceleration exceeds the plant's envelope")
+        return ref, preview
+    if kind in ("trapezoid", "scurve"):
+        ref = Reference(
+            kind,
             schedule=_schedule(r, lim),
             offset=offset,
             max_velocity=r.positive("max_velocity", lim.rate),
@@ -343,6 +392,25 @@ def _random(r: Node, lim: Limits, load_limit: float) -> Reference:
     if family.speeds[0] <= 0 and any(k in kinds for k in ("ramp", "sine", "trapezoid", "reversal")):
         raise r.error("speeds", "moving segments need speeds above 0")
     return Reference("random", family=family)
+
+
+# A drift or step may lower the levels to 10 % (1 - 0.9) or raise them to 4x: beyond, the friction is
+# another machine's. Both factors stay positive, so every level keeps its sign and |bias| < fc.
+DRIFT_FRACTION_RANGE = (-0.9, 3.0)
+
+
+def _drift(c: Node) -> FrictionDrift | None:
+    """The scenario's friction_drift section (null: constant friction within an episode)."""
+    if c.get("friction_drift") is None:
+        return None
+    if c["friction_model"] != "lugre":
+        raise c.error("friction_drift", "drifting friction levels need friction_model lugre")
+    d = c.section("friction_drift")
+    return FrictionDrift(
+        drift=d.interval("drift", *DRIFT_FRACTION_RANGE),
+        step=d.interval("step", *DRIFT_FRACTION_RANGE),
+        step_at_s=d.interval("step_at_s", 0.0, MAX_EPISODE_S),  # a step after the end never comes
+    )
 
 
 def _deep_update(base: dict, extra: Mapping) -> dict:
@@ -475,6 +543,8 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
         privileged=obs.boolean("privileged"),
         reward_weights={k: rw.nonneg(k, MAX_REWARD_WEIGHT) for k in ("tracking", "effort", "smoothness")},
         nonlinear_friction=c.boolean("nonlinear_friction"),
+        friction_drift=_drift(c),
+        held_out=c.boolean("held_out"),
     )
     if c.get("disturbance") is not None:
         if spec.disturbance_joint is None:

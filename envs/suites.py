@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .config import ConfigError, Node, configs_dir, integer, load_yaml
-from .scenario import scenario_names
+from .config import ConfigError, Node, boolean, configs_dir, integer, load_yaml
+from .scenario import scenario_config, scenario_names
 
 FILE = "suites.yaml"
 
@@ -31,13 +31,25 @@ def suite_names() -> list[str]:
     return sorted(load_yaml(configs_dir() / FILE))
 
 
-def load_suite(name: str) -> list[Episode]:
-    """The suite's episodes, scenario-major, in the file's order; every key and value checked."""
+def _suite(name: str) -> Node:
     suites = Node(load_yaml(configs_dir() / FILE), FILE)
     if name not in suites:
         raise ConfigError("suite", f"unknown suite {name!r}; available: {sorted(suites.keys())}", FILE)
-    s = suites.section(name)
+    return suites.section(name)
+
+
+def suite_held_out(name: str) -> bool:
+    """Whether a suite is held out (`held_out: true`, the generalisation suite): its scenarios are never
+    trained or selected on."""
+    return _suite(name).boolean("held_out", default=False)
+
+
+def load_suite(name: str) -> list[Episode]:
+    """The suite's episodes, scenario-major, in the file's order; every key and value checked. A held-out
+    suite holds held-out scenarios only, and no other suite holds one."""
+    s = _suite(name)
     randomize = s.boolean("randomize")
+    held_out = s.boolean("held_out", default=False)
     known = scenario_names()
     scenarios = s["scenarios"]
     if not isinstance(scenarios, list) or not scenarios:
@@ -45,6 +57,9 @@ def load_suite(name: str) -> list[Episode]:
     for i, sc in enumerate(scenarios):
         if sc not in known:
             raise s.error(f"scenarios[{i}]", f"unknown scenario {sc!r}; available: {known}")
+        if boolean(scenario_config(sc).get("held_out", False), f"{sc}: held_out") != held_out:
+            why = "is not held out" if held_out else "is held out (the generalisation suite's)"
+            raise s.error(f"scenarios[{i}]", f"{sc} {why}; a suite is held out whole or not at all")
     if isinstance(s["seeds"], dict):  # {start, count}
         r = s.section("seeds")
         start, count = r.integer("start", 0), r.integer("count", 1, 100_000)

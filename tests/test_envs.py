@@ -66,7 +66,7 @@ def test_wrong_plant_for_id_is_rejected():
             {"overrides": {"task": {"action_scale_nm": 50.0}}},
             "task.action_scale_nm",
         ),  # above the 10 N·m limit
-        ({"overrides": {"reference": {"type": "chirp"}}}, "reference.type"),
+        ({"overrides": {"reference": {"type": "square"}}}, "reference.type"),
         ({"overrides": {"task": {"tracked_sensor": "tacho9"}}}, "task.tracked_sensor"),
         ({"overrides": {"rewards": {}}}, "rewards"),
     ],

@@ -67,3 +67,42 @@ def test_random_reference_fields_are_checked():
         load_scenario("kang_random", {"reference": {"amplitude": 100.0}})  # beyond the envelope
     with pytest.raises(ValueError, match="per episode"):
         load_scenario("kang_random").reference(np.zeros(3))
+
+
+def test_a_suite_is_held_out_whole_or_not_at_all(tmp_path, monkeypatch):
+    from frictiongym.envs import suites
+
+    (tmp_path / "suites.yaml").write_text(
+        "mixed: {randomize: true, seeds: [1], scenarios: [kang_regulation, kang_chirp]}\n"
+        "held: {randomize: true, held_out: true, seeds: [1], scenarios: [kang_chirp, kang_ramp]}\n"
+    )
+    monkeypatch.setattr(suites, "configs_dir", lambda: tmp_path)
+    with pytest.raises(ConfigError, match=r"scenarios\[1\].*kang_chirp is held out"):
+        suites.load_suite("mixed")
+    with pytest.raises(ConfigError, match=r"scenarios\[1\].*kang_ramp is not held out"):
+        suites.load_suite("held")
+    monkeypatch.undo()
+    gen = suites.load_suite("generalisation")
+    assert suites.suite_held_out("generalisation") and not suites.suite_held_out("validation")
+    assert {e.seed for e in gen}.isdisjoint({e.seed for e in suites.load_suite("validation")})
+    assert all(load_scenario(s).held_out for s in {e.scenario for e in gen})
+
+
+def test_chirp_sweeps_its_frequency_and_scurve_moves_within_its_limits():
+    from frictiongym.envs.scenario import Reference
+
+    t = np.arange(0, 10, 1e-3)
+    chirp = Reference("chirp", amplitude=1.0, frequency_hz=0.5, end_frequency_hz=2.5, sweep_s=10.0)
+    up = np.flatnonzero(np.diff(np.signbit(chirp(t)).astype(int)) == -1)  # upward zero crossings
+    periods = np.diff(t[up])
+    # instantaneous frequency f0 + (f1 - f0) t / T: about 0.6 Hz near the start, 2.4 Hz near the end
+    assert 1 / periods[0] == pytest.approx(0.5 + 0.2 * t[up][:2].mean(), rel=0.05)
+    assert 1 / periods[-1] == pytest.approx(0.5 + 0.2 * t[up][-2:].mean(), rel=0.05)
+    s = Reference("scurve", schedule=((0.5, 1.0), (3.0, -0.5)), max_velocity=2.0, max_acceleration=8.0)
+    x = s(t)
+    v = np.gradient(x, t)
+    a = np.gradient(v, t)
+    # cycloid: T = max(2d/v, sqrt(2πd/a)); continuous acceleration peaking at 2πd/T² (no jumps)
+    assert x[2900] == pytest.approx(1.0) and x[-1] == pytest.approx(-0.5)
+    assert np.abs(v).max() <= 2.0 + 1e-3 and np.abs(a).max() <= 8.0 + 1e-2
+    assert np.abs(np.diff(a)).max() < 0.1  # per 1 ms sample: no acceleration steps (trapezoid's are 8)

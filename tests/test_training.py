@@ -4,6 +4,8 @@ the residual's zero start, asymmetric actor-critic, registry entries, and the si
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +35,7 @@ from frictiongym.agents.training import (
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.suites import load_suite
 
+ROOT = Path(__file__).parents[1]
 SCENARIO = "flexible_speed_step"  # 250 steps per episode: the cheapest validation episodes
 HYPER = {
     "SAC": {"learning_starts": 0, "batch_size": 32, "buffer_size": 2000, "policy_kwargs": {"net_arch": [16]}},
@@ -192,6 +195,26 @@ def test_config_errors_name_the_field(tmp_path, entry, field):
     with pytest.raises(ConfigError, match=field) as e:
         load_config(path)
     assert str(path) in str(e.value)
+
+
+def test_held_out_scenarios_and_suites_are_never_trained_or_selected_on(tmp_path):
+    """A generalisation scenario is refused by the config loader (and so by scripts/train.py and the
+    sweeps), and model selection refuses a held-out suite; a held-out scenario may not sit in another
+    suite."""
+    path = write_config(tmp_path, "SAC")
+    path.write_text(path.read_text().replace(SCENARIO, "kang_chirp"))
+    with pytest.raises(ConfigError, match=r"scenarios\.kang_chirp.*held-out") as e:
+        load_config(path)
+    assert str(path) in str(e.value)
+    with pytest.raises(ConfigError, match="generalisation is held out"):
+        validation_episodes("kang_chirp", "generalisation")
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "scripts/train.py"), "--config", str(path), "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode != 0 and "held-out" in proc.stderr and not (tmp_path / "SmokeSAC").exists()
 
 
 def test_committed_configs_load():
