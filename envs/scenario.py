@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import copy
 import itertools
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from functools import cached_property
@@ -369,6 +368,14 @@ def _reference(r: Node, lim: Limits, load_limit: float = 0.0) -> tuple[Reference
     return ref, preview
 
 
+def _load_torque(r: Node, limit: float) -> float:
+    """A random reference's load torque during holds (N·m, or N on a carriage), within the plant's
+    disturbance-motor limit; any other than 0 is refused on a plant without one."""
+    if limit == 0 and r.get("load_torque", 0.0) != 0.0:
+        raise r.error("load_torque", f"{r['load_torque']!r}: the plant has no disturbance motor")
+    return r.number("load_torque", 0.0, limit, default=0.0)
+
+
 def _random(r: Node, lim: Limits, load_limit: float) -> Reference:
     """A random reference family (envs/references.py) within the limits."""
     kinds = r["segments"]
@@ -384,11 +391,8 @@ def _random(r: Node, lim: Limits, load_limit: float) -> Reference:
         speeds=r.interval("speeds", 0.0, lim.rate),
         max_acceleration=r.positive("max_acceleration", lim.accel),
         frequency_hz=r.interval("frequency_hz", MIN_FREQUENCY_HZ, lim.f_max),
-        load_torque=r.nonneg("load_torque", math.inf, default=0.0),
+        load_torque=_load_torque(r, load_limit),
     )
-    if family.load_torque > load_limit:
-        why = "the plant has no disturbance motor" if load_limit == 0 else f"beyond {load_limit} N·m"
-        raise r.error("load_torque", f"{family.load_torque} N·m: {why}")
     if family.speeds[0] <= 0 and any(k in kinds for k in ("ramp", "sine", "trapezoid", "reversal")):
         raise r.error("speeds", "moving segments need speeds above 0")
     return Reference("random", family=family)

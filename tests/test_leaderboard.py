@@ -10,6 +10,7 @@ import pytest
 
 from frictiongym.agents import leaderboard, registry, stats
 from frictiongym.envs.scenario import load_scenario
+from frictiongym.envs.suites import load_suite
 
 ROOT = Path(__file__).parents[1]
 
@@ -101,7 +102,8 @@ def test_script_writes_markdown_csv_and_plots(tmp_path):
 @pytest.mark.parametrize("suite", ["paper", "default"])
 def test_every_classical_baseline_beats_zero_and_the_limits_bound_the_loop(suite):
     """Each scenario needs compensation: doing nothing loses to every classical baseline on its main
-    metric (mean over the suite's episodes; flexible_zero_speed passes through its load torque). Where
+    metric (mean over the paper suite, and over 10 of the default suite's 20 seeds per scenario, which
+    keeps CI within its budget; flexible_zero_speed passes through its load torque). Where
     the scenario scores the friction penalty (limit_score not none), the friction-free loop (Ideal) and
     the perfect friction observer (Oracle) beat the uncompensated loop, and the penalty is what the YAML
     declares: above 5 %, and for a log score the friction-free loop's error is ~0 (two decades below
@@ -109,7 +111,10 @@ def test_every_classical_baseline_beats_zero_and_the_limits_bound_the_loop(suite
     negative (friction helps the loop) the Oracle, which cancels it, does not beat the loop either. On
     the default suite, kang_regulation_coarse is hard: the best classical baseline's g drops by more
     than 0.2 from kang_regulation's. (The `test` suite is touched once, for the final numbers.)"""
-    results, table = leaderboard.run(suite, list(registry.BUILTIN), None, progress=False, workers=2)
+    episodes = [e for e in load_suite(suite) if e.seed < 1010]  # paper: all; default: 10 of its 20 seeds
+    results, table = leaderboard.run(
+        suite, list(registry.BUILTIN), None, progress=False, workers=2, episodes=episodes
+    )
     for sc, rows in table.items():
         s = load_scenario(sc)
         main = {r["controller"]: r["main"][0] for r in rows}

@@ -210,10 +210,15 @@ def _cases():
                 path,
                 lambda v, d=data, p=path: {"plant_overrides": _override(d, p, v)},
             )
-    for name in scenario_names():
+    seen = set()  # a key a variant inherits is checked by the same code: probed once per plant and
+    for name in scenario_names():  # reference type
         data = scenario_config(name)
         data.pop("plant_overrides", None)
+        kind = (data.get("plant"), (data.get("reference") or {}).get("type"))
         for path, _ in _numeric_leaves(data):
+            if (kind, path) in seen:
+                continue
+            seen.add((kind, path))
             yield name, name, path, lambda v, d=data, p=path: _override(d, p, v)
 
 
