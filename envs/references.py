@@ -92,13 +92,25 @@ def _reflect(x: np.ndarray, bound: float) -> np.ndarray:
     return np.where(y <= 2 * bound, y - bound, 3 * bound - y)
 
 
+def move_duration(d: float, v: float, a: float) -> float:
+    """Duration (s) of a trapezoidal move over distance d at speed v and acceleration a (triangular if it
+    never reaches v)."""
+    return d / v + v / a if d >= v * v / a else 2.0 * np.sqrt(d / a)
+
+
+def trapezoid_distance(d: float, v: float, a: float, tau: np.ndarray) -> np.ndarray:
+    """Distance covered tau (s, clipped to the move) into a trapezoidal move of length d."""
+    T = move_duration(d, v, a)
+    tau = np.clip(tau, 0.0, T)
+    ta = min(v / a, np.sqrt(d / a))  # acceleration phase
+    vp = a * ta  # peak velocity
+    return np.where(
+        tau < ta,
+        0.5 * a * tau**2,
+        np.where(tau <= T - ta, 0.5 * a * ta**2 + vp * (tau - ta), d - 0.5 * a * (T - tau) ** 2),
+    )
+
+
 def _trapezoid(x0: float, x1: float, v: float, a: float, tau: np.ndarray) -> np.ndarray:
     """A move x0 -> x1 with a trapezoidal (or triangular) velocity profile, then held at x1."""
-    d = abs(x1 - x0)
-    ta = min(v / a, math.sqrt(d / a))  # acceleration phase (s)
-    vp = a * ta
-    T = 2 * ta + (d - a * ta * ta) / vp if vp > 0 else 0.0
-    cruise = 0.5 * a * ta**2 + vp * (tau - ta)
-    decel = d - 0.5 * a * np.clip(T - tau, 0.0, None) ** 2
-    s = np.where(tau < ta, 0.5 * a * tau**2, np.where(tau <= T - ta, cruise, decel))
-    return x0 + math.copysign(1.0, x1 - x0) * np.minimum(s, d)
+    return x0 + math.copysign(1.0, x1 - x0) * trapezoid_distance(abs(x1 - x0), v, a, tau)

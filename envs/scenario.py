@@ -25,7 +25,7 @@ from .friction import FRICTION_MODELS, FrictionDrift
 from .metrics import METRIC_NAMES
 from .plants import PlantSpec, plant_names, plant_spec
 from .plants.mjcf import friction_joints
-from .references import SEGMENT_KINDS, RandomReference
+from .references import SEGMENT_KINDS, RandomReference, move_duration, trapezoid_distance
 from .sampler import REFERENCE as REFERENCE_STREAM
 from .sampler import stream
 from .step import ObservationLayout, observation_layout
@@ -123,22 +123,15 @@ class Reference:
         v, a = self.max_velocity, self.max_acceleration
         if self.type == "scurve":
             return max(2.0 * distance / v, np.sqrt(2.0 * np.pi * distance / a))
-        return distance / v + v / a if distance >= v * v / a else 2.0 * np.sqrt(distance / a)
+        return move_duration(distance, v, a)
 
     def _profile(self, d: float, tau: np.ndarray) -> np.ndarray:
         """Distance covered τ (s, clipped to the move) into a move of length d."""
-        v, a = self.max_velocity, self.max_acceleration
+        if self.type != "scurve":
+            return trapezoid_distance(d, self.max_velocity, self.max_acceleration, tau)
         T = self.move_duration(d)
         tau = np.clip(tau, 0.0, T)
-        if self.type == "scurve":
-            return d * (tau / T - np.sin(2 * np.pi * tau / T) / (2 * np.pi)) if T > 0 else np.zeros_like(tau)
-        ta = min(v / a, np.sqrt(d / a))  # acceleration phase
-        vp = a * ta  # peak velocity
-        return np.where(
-            tau < ta,
-            0.5 * a * tau**2,
-            np.where(tau <= T - ta, 0.5 * a * ta**2 + vp * (tau - ta), d - 0.5 * a * (T - tau) ** 2),
-        )
+        return d * (tau / T - np.sin(2 * np.pi * tau / T) / (2 * np.pi)) if T > 0 else np.zeros_like(tau)
 
     def _moves(self, t: np.ndarray) -> np.ndarray:
         out = np.full_like(t, self.offset)
