@@ -147,10 +147,6 @@ def verdicts(table: dict[str, list[dict]], scenarios: dict[str, Scenario]) -> li
     return out
 
 
-def plant_of(scenario: Scenario) -> str:
-    return scenario.spec.name
-
-
 def aggregate(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> list[dict]:
     """Per plant, over equal sets of scenarios only. The plant's scored scenarios are those whose g is
     defined (limit_score not none); each entry belongs to the set of scored scenarios it ran on, and each
@@ -162,7 +158,7 @@ def aggregate(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> l
     for r in results:
         sc = scenarios[r.scenario]
         if sc.limit_score != "none":
-            g[(plant_of(sc), r.controller)][r.scenario].append(r.g)
+            g[(sc.spec.name, r.controller)][r.scenario].append(r.g)
     out = []
     for plant in sorted({p for p, _ in g}):
         by_ctrl = {c: dict(v) for (p, c), v in g.items() if p == plant}

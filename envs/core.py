@@ -326,7 +326,6 @@ class ServoCore:
             self.noise_scale[i] = p.noise_scale
             self.sigma2[i] = [f.sigma2 if spec.friction_model == "lugre" else 0.0 for f in p.friction]
             self.delay_steps[i], self.jitter_steps[i] = p.delay_steps(spec), p.jitter_steps(spec)
-        for i, p in zip(ids, params, strict=True):
             self.levels[i] = [(f.fc, f.fs, f.bias) for f in p.friction] or np.zeros((0, 3))
         if self.drift is not None:  # each episode's own drift, from its seed
             period_starts = self.t[:-1]

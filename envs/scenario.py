@@ -374,9 +374,7 @@ def _random(r: Node, lim: Limits, load_limit: float) -> Reference:
     kinds = r["segments"]
     if not isinstance(kinds, list) or not kinds or any(k not in SEGMENT_KINDS for k in kinds):
         raise r.error("segments", f"expected a non-empty list of segment kinds from {list(SEGMENT_KINDS)}")
-    seg = r.interval("segment_s", 1e-3, MAX_EPISODE_S)
-    if seg[0] <= 0:
-        raise r.error("segment_s", "segments must last longer than 0 s")
+    seg = r.interval("segment_s", 1e-3, MAX_EPISODE_S)  # s: at least a millisecond
     family = RandomReference(
         kinds=tuple(kinds),
         segment_s=seg,
