@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 from mujoco.batch import Batch, SimulationError
 
-from .friction import joint_friction_torque
+from .friction import BRISTLE_MODELS, element_levels, elements, joint_friction_torque, joint_levels
 from .metrics import episode_metrics
 from .plants.mjcf import to_mjcf
 from .plants.params import EpisodeParams, ModelIndex, apply, apply_batch
@@ -82,8 +82,8 @@ class SingleBackend:
         self.model.actuator_delay[self.idx.drive] = delay[0]
 
     def set_levels(self, ids: np.ndarray, levels: np.ndarray) -> None:
-        """Friction levels (n, n_friction, [fc, fs, bias]) of the LuGre elements, N·m (drift)."""
-        bp, f = self.model.actuator_biasprm, list(self.idx.friction)
+        """Friction levels (n, n_elements, [fc, fs, bias]) of the LuGre elements, N·m (drift)."""
+        bp, f = self.model.actuator_biasprm, [a for a, _, _ in self.idx.elements]
         bp[f, 3], bp[f, 4], bp[f, 0] = levels[0, :, 0], levels[0, :, 1], levels[0, :, 2]
 
     def step(self, ids: np.ndarray, command: np.ndarray, disturbance: np.ndarray | None) -> np.ndarray:
@@ -130,7 +130,7 @@ class BatchBackend:
     def set_levels(self, ids: np.ndarray, levels: np.ndarray) -> None:
         if self.biasprm is None:
             self.biasprm = self.batch.expand("actuator_biasprm")
-        rows, f = ids[:, None], np.array(self.idx.friction)[None, :]
+        rows, f = ids[:, None], np.array([a for a, _, _ in self.idx.elements])[None, :]
         bp = self.biasprm
         bp[rows, f, 3], bp[rows, f, 4], bp[rows, f, 0] = levels[:, :, 0], levels[:, :, 1], levels[:, :, 2]
 
@@ -171,6 +171,8 @@ EPISODE_STATE = (
     "_disturbance",
     "drift",  # friction drift: λ per period and the episode's base levels, and the fast path's copies
     "levels",
+    "elem_levels",
+    "elem_sigma0",
     "_drift",
     "_levels",
 )
@@ -201,9 +203,12 @@ class ServoCore:
             [int(m.jnt_dofadr[m.actuator_trnid[a, 0]]) for a in self.idx.friction], dtype=int
         )
         self.fric_act = np.array(self.idx.friction, dtype=int)
-        self.bristle_adr = np.array(
-            [m.actuator_actadr[a] for a in self.idx.friction if m.actuator_actnum[a] > 0], dtype=int
-        )
+        # a structure's LuGre elements: all of them (bristle states, drift) and those beyond each joint's
+        # first, whose forces add to their joint's (friction torques)
+        self.elem_act = np.array([a for a, _, _ in self.idx.elements], dtype=int)
+        self._element_order = [(i, k) for _, i, k in self.idx.elements]
+        self._extras = [(int(a), i) for a, i, k in self.idx.elements if k > 0]
+        self.bristle_adr = np.array([m.actuator_actadr[a] for a in self.elem_act], dtype=int)
         track_joint = spec.joints[spec.joint_index(spec.sensors[sc.tracked_sensor].joint)]
         self.stick_velocity = track_joint.friction.vs if track_joint.friction is not None else 1e-3
         res = spec.sensors[sc.tracked_sensor].resolution
@@ -226,6 +231,8 @@ class ServoCore:
         nf = len(self.fric_act)
         self.drift = np.ones((n, T)) if sc.friction_drift is not None else None
         self.levels = np.zeros((n, nf, 3))
+        self.elem_levels = np.zeros((n, len(self.elem_act), 3))
+        self.elem_sigma0 = np.zeros((n, len(self.elem_act)))
         self._drift: list[float] | None = None
         self._levels: list[tuple[int, float, float, float]] = []
         # per-simulation episode state
@@ -324,9 +331,15 @@ class ServoCore:
         for i, (p, _, _, (noise, jitter)) in zip(ids, draws, strict=True):
             self.params[i], self.noise_rng[i], self.jitter_rng[i] = p, noise, jitter
             self.noise_scale[i] = p.noise_scale
-            self.sigma2[i] = [f.sigma2 if spec.friction_model == "lugre" else 0.0 for f in p.friction]
+            model = spec.friction_model
+            self.sigma2[i] = [f.sigma2 if model in BRISTLE_MODELS else 0.0 for f in p.friction]
             self.delay_steps[i], self.jitter_steps[i] = p.delay_steps(spec), p.jitter_steps(spec)
-            self.levels[i] = [(f.fc, f.fs, f.bias) for f in p.friction] or np.zeros((0, 3))
+            self.levels[i] = [joint_levels(model, f) for f in p.friction] or np.zeros((0, 3))
+            per_joint = [element_levels(model, f) for f in p.friction]
+            sig0 = [[e.sigma0 for e in elements(model, f)] for f in p.friction]
+            order = self._element_order
+            self.elem_levels[i] = [per_joint[j][k] for j, k in order] or np.zeros((0, 3))
+            self.elem_sigma0[i] = [sig0[j][k] for j, k in order]
         if self.drift is not None:  # each episode's own drift, from its seed
             period_starts = self.t[:-1]
             for i, seed in zip(ids, seeds, strict=True):
@@ -336,7 +349,7 @@ class ServoCore:
                 self._drift = self.drift[0].tolist()
                 self._levels = [
                     (int(a), float(fc), float(fs), float(b))
-                    for a, (fc, fs, b) in zip(self.fric_act, self.levels[0], strict=True)
+                    for a, (fc, fs, b) in zip(self.elem_act, self.elem_levels[0], strict=True)
                 ]
         if self.per_episode:  # each episode's own reference (and load torque), from its seed
             for i, seed in zip(ids, seeds, strict=True):
@@ -375,7 +388,7 @@ class ServoCore:
         rows = self.rows[ids]
         dist = self.disturbance[rows, self.k[ids]] if self.disturbance is not None else None
         if self.drift is not None:  # the levels over this period
-            self.backend.set_levels(ids, self.levels[ids] * self.drift[ids, self.k[ids]][:, None, None])
+            self.backend.set_levels(ids, self.elem_levels[ids] * self.drift[ids, self.k[ids]][:, None, None])
         self.diverged[ids] |= self.backend.step(ids, command, dist)
         self.k[ids] += 1
         k = self.k[ids]
@@ -501,14 +514,12 @@ class ServoCore:
         if sc.privileged:
             unit = sc.action_scale * sc.spec.actuator_gain  # torque of a unit action
             act, force = act[sel], force[sel]
-            nf = len(self.fric_act)
-            z = act[:, self.bristle_adr] if len(self.bristle_adr) else np.zeros((n, nf))
-            sigma0 = np.array([[f.sigma0 for f in self.params[i].friction] for i in ids]).reshape(n, -1)
+            spring = self.per_joint(self.elem_sigma0[ids] * act[:, self.bristle_adr], primary=False)
             parts["privileged"] = np.concatenate(
                 [
                     (truth * inv)[:, None],
-                    (force[:, self.fric_act] - self.sigma2[ids] * qvel[:, self.fric_dofs]) / unit,
-                    sigma0 * z / unit,
+                    (self.per_joint(force) - self.sigma2[ids] * qvel[:, self.fric_dofs]) / unit,
+                    spring / unit,
                 ],
                 axis=1,
             )
@@ -526,29 +537,46 @@ class ServoCore:
         now = {"coulomb_level": levels[..., 0], "static_level": levels[..., 1], "friction_scale": lam}
         if self._fast:  # the same values from the MjData, with plain indices
             b = self.backend
-            qv, f, s2 = b.qvel, b.force, self.sigma2[0]
+            qv, s2 = b.qvel, self.sigma2[0]
+            f = self.per_joint(b.force)
             return {
                 "qpos": b.qpos.copy(),
                 "qvel": qv.copy(),
                 "bristle": b.act[self.bristle_adr],
                 "friction_torque": np.array(
-                    [joint_friction_torque(f[a], s2[j], qv[dof]) for j, (a, dof) in enumerate(self._fric)]
+                    [joint_friction_torque(f[j], s2[j], qv[dof]) for j, (_, dof) in enumerate(self._fric)]
                 ),
-                "nonlinear_friction_torque": f[self.fric_act],
+                "nonlinear_friction_torque": f,
                 **now,
             }
         qpos, qvel, act, force = self.backend.state()
         qv = qvel[i]
+        f = self.per_joint(force[i])
         return {
             "qpos": qpos[i].copy(),
             "qvel": qv.copy(),
             "bristle": act[i, self.bristle_adr],
-            "friction_torque": joint_friction_torque(
-                force[i, self.fric_act], self.sigma2[i], qv[..., self.fric_dofs]
-            ),
-            "nonlinear_friction_torque": force[i, self.fric_act],
+            "friction_torque": joint_friction_torque(f, self.sigma2[i], qv[..., self.fric_dofs]),
+            "nonlinear_friction_torque": f,
             **now,
         }
+
+    def per_joint(self, x: np.ndarray, primary: bool = True) -> np.ndarray:
+        """Per frictional joint, the sum over its LuGre elements: of actuator forces x (..., nu) (primary:
+        the first element's force carries the bias) or of per-element values x (..., n_elements)."""
+        nf = len(self.fric_act)
+        if primary:
+            out, extras = x[..., self.fric_act], self._extras
+        else:
+            if x.shape[-1] == 0:
+                return np.zeros((*x.shape[:-1], nf))
+            out = x[..., :nf]
+            extras = [(nf + e, j) for e, (_, j) in enumerate(self._extras)]
+        if extras:
+            out = out.copy()
+            for a, j in extras:
+                out[..., j] += x[..., a]
+        return out
 
     def current_levels(self, i: int | slice) -> tuple[np.ndarray, np.ndarray]:
         """(λ, [fc, fs, bias] per frictional joint, N·m) of simulation i (or a slice) over the period that

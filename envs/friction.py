@@ -12,6 +12,25 @@ Exact: Coulomb and static levels of both directions when their Stribeck drops ar
 (Fs+ - Fc+ = Fs- - Fc-); otherwise the static levels are kept exact and each Coulomb level is off by
 half the difference of the drops. Not exact: viscous slopes must be equal in both directions, and at
 rest the bias is balanced by the bristles, which shifts the presliding equilibrium by b/σ0 (rad).
+
+Friction structures (a scenario's `friction_model`; seed 000's survey, docs/physics.md "Friction
+structures"). The preset's LuGreParams describe one static curve and one bristle; a structure says which
+native elements carry it on the joint:
+
+    lugre         one LuGre element (§1.4.6).
+    dahl          one Dahl element (§1.4.1): LuGre with g(v) = Fc (the survey's "g(v) = Fc/σ0" is a typo:
+                  with eq. (1) as printed, σ0/g(v) = σ0/Fc is Dahl's). No Stribeck curve, no stiction, rate
+                  independent. Deviation, measured: the survey's σ1 = 0 is not kept, the preset's bristle
+                  damping σ1 is: undamped, the bristle spring rings at sqrt(σ0/J) and MuJoCo's explicit
+                  step creeps ten times the Radau solution under a held torque (Kang's rotor, half the
+                  static level: 2.5e-4 against 2.6e-5 rad after 1 s). The preset's σ2·v stays, as the
+                  plant's viscous term.
+    maxwell_slip  N parallel LuGre elements (a Maxwell-slip/Leuven-type presliding hysteresis with
+                  non-local memory, §1.4.7): element i has a share α_i of the levels and a presliding length
+                  r_i·c times LuGre's F_s/σ0; its stiffness and damping are shares of σ0 and σ1 summing to
+                  them, so the small-motion stiffness, the damping and the static curve are LuGre's.
+    coulomb       Coulomb + viscous (§1.2.1-1.2.2) by MuJoCo's frictionloss constraint (sticks at rest).
+    viscous, none the nonlinear part removed.
 """
 
 from __future__ import annotations
@@ -24,7 +43,13 @@ import numpy as np
 
 from .config import ConfigError, nonneg, positive
 
-FRICTION_MODELS = ("lugre", "coulomb", "viscous", "none")
+FRICTION_MODELS = ("lugre", "dahl", "maxwell_slip", "coulomb", "viscous", "none")
+BRISTLE_MODELS = ("lugre", "dahl", "maxwell_slip")  # carried by native LuGre elements (dcmotor lugre)
+# Maxwell-slip elements: shares α_i of the levels and relative presliding lengths r_i (element i slips after
+# r_i·c·F_s/σ0 with c = Σ α_j/r_j, so that the stiffness shares (α_i/r_i)/c sum to 1): 0.37 to 10 LuGre
+# presliding lengths, so that the friction force builds up over a decade of displacement.
+MAXWELL_SLIP_SHARES = (0.25, 0.25, 0.25, 0.25)
+MAXWELL_SLIP_LENGTHS = (1.0 / 3.0, 1.0, 3.0, 9.0)
 
 
 @dataclass(frozen=True)
@@ -129,6 +154,57 @@ class LuGreParams:
                 f"|bias| {abs(self.bias)} must be < the symmetric Coulomb "
                 f"level {self.fc} (both directions must keep positive friction)",
             )
+
+
+@dataclass(frozen=True)
+class Element:
+    """One native LuGre element on a joint (SI): stiffness σ0 (N·m/rad), damping σ1 (N·m·s/rad), Coulomb
+    and static levels fc, fs (N·m), Stribeck velocity vs (rad/s)."""
+
+    sigma0: float
+    sigma1: float
+    fc: float
+    fs: float
+    vs: float
+
+
+def elements(model: str, p: LuGreParams) -> tuple[Element, ...]:
+    """The native elements that carry friction p on its joint under structure `model` (module docstring);
+    the first carries the bias and σ2 as well. Empty where no bristle element is used."""
+    if model == "lugre":
+        return (Element(p.sigma0, p.sigma1, p.fc, p.fs, p.vs),)
+    if model == "dahl":
+        return (Element(p.sigma0, p.sigma1, p.fc, p.fc, p.vs),)
+    if model == "maxwell_slip":
+        c = sum(a / r for a, r in zip(MAXWELL_SLIP_SHARES, MAXWELL_SLIP_LENGTHS, strict=True))
+        return tuple(
+            Element(p.sigma0 * a / r / c, p.sigma1 * a / r / c, a * p.fc, a * p.fs, p.vs)
+            for a, r in zip(MAXWELL_SLIP_SHARES, MAXWELL_SLIP_LENGTHS, strict=True)
+        )
+    return ()
+
+
+def element_levels(model: str, p: LuGreParams) -> list[tuple[float, float, float]]:
+    """(fc, fs, bias) of each native element of p under `model` (N·m): what drift scales. The bias
+    rides on the first element."""
+    return [(e.fc, e.fs, p.bias if k == 0 else 0.0) for k, e in enumerate(elements(model, p))]
+
+
+def joint_levels(model: str, p: LuGreParams) -> tuple[float, float, float]:
+    """The joint's symmetric Coulomb and static levels and bias under `model` (N·m): the elements' sums
+    (Dahl: static = Coulomb); Coulomb + viscous sticks and slides at fc."""
+    if model == "coulomb":
+        return p.fc, p.fc, p.bias
+    levels = element_levels(model, p)
+    fc, fs = levels[0][0], levels[0][1]
+    for e in levels[1:]:
+        fc, fs = fc + e[0], fs + e[1]
+    return fc, fs, p.bias
+
+
+def element_count(model: str) -> int:
+    """Native LuGre elements per frictional joint under structure `model`."""
+    return len(MAXWELL_SLIP_SHARES) if model == "maxwell_slip" else 1 if model in BRISTLE_MODELS else 0
 
 
 @dataclass(frozen=True)

@@ -21,7 +21,7 @@ import numpy as np
 
 from . import recorded
 from .config import ConfigError, Node, interval, load_yaml, merge, number, preset_names, preset_path
-from .friction import FRICTION_MODELS, FrictionDrift
+from .friction import BRISTLE_MODELS, FRICTION_MODELS, FrictionDrift
 from .metrics import METRIC_NAMES
 from .plants import PlantSpec, plant_names, plant_spec
 from .plants.mjcf import friction_joints
@@ -398,8 +398,10 @@ def _drift(c: Node) -> FrictionDrift | None:
     """The scenario's friction_drift section (null: constant friction within an episode)."""
     if c.get("friction_drift") is None:
         return None
-    if c["friction_model"] != "lugre":
-        raise c.error("friction_drift", "drifting friction levels need friction_model lugre")
+    if c["friction_model"] not in BRISTLE_MODELS:
+        raise c.error(
+            "friction_drift", f"drifting friction levels need a friction_model of {list(BRISTLE_MODELS)}"
+        )
     d = c.section("friction_drift")
     return FrictionDrift(
         drift=d.interval("drift", *DRIFT_FRACTION_RANGE),

@@ -1,7 +1,8 @@
-"""Friction validation: each plant's MuJoCo LuGre element against an independent stiff-ODE solution
-(scipy solve_ivp, Radau) of the same rigid-body + LuGre equations (seed 000 §1.4.6):
+"""Friction validation: each plant's native friction elements in MuJoCo against an independent stiff-ODE
+solution (scipy solve_ivp, Radau) of the same rigid-body + friction equations. For a structure of N
+LuGre elements (friction.elements: LuGre §1.4.6, Dahl §1.4.1, Maxwell-slip §1.4.7 of seed 000):
 
-    J·θ'' = T(t, θ) - (σ0·z + σ1·ż + σ2·θ') + b,   ż = θ' - σ0·|θ'|·z/g(θ')
+    J·θ'' = T(t, θ) - Σ_k (σ0k·z_k + σ1k·ż_k) - σ2·θ' + b,   ż_k = θ' - σ0k·|θ'|·z_k/g_k(θ')
 
 Experiments run on a one-joint rig with the plant's friction parameters, timestep and integrator and
 the inertia the friction sees (the reflected inertia for the M220), so the numerics are the plant's.
@@ -16,11 +17,16 @@ import mujoco
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .friction import LuGreParams
+from .friction import Element, LuGreParams, elements
 from .plants import PlantSpec
 from .plants.mjcf import to_mjcf
 
 Torque = Callable[[float, float], float]  # T(t, θ) in N·m
+
+
+def _g(e: Element, v: float | np.ndarray) -> float | np.ndarray:
+    """An element's Stribeck curve g_k(v) (N·m), seed 000 eq. (2)."""
+    return e.fc + (e.fs - e.fc) * np.exp(-((v / e.vs) ** 2))
 
 
 def lugre_ode(
@@ -30,19 +36,22 @@ def lugre_ode(
     t_end: float,
     max_step: float = 1e-3,
     t_eval: np.ndarray | None = None,
+    model: str = "lugre",
 ):
-    """Radau solution of the one-joint rigid body + LuGre system from rest; y = (θ, ω, z)."""
+    """Radau solution of the one-joint rigid body + the structure's elements from rest;
+    y = (θ, ω, z_1..z_N)."""
+    els = elements(model, p)
 
     def f(t: float, y: np.ndarray) -> list[float]:
-        th, v, z = y
-        zd = v - p.sigma0 * abs(v) * z / p.g(v)
-        friction = p.sigma0 * z + p.sigma1 * zd + p.sigma2 * v
-        return [v, (torque(t, th) - friction + p.bias) / J, zd]
+        th, v, z = y[0], y[1], y[2:]
+        zd = [v - e.sigma0 * abs(v) * zk / _g(e, v) for e, zk in zip(els, z, strict=True)]
+        friction = sum(e.sigma0 * zk + e.sigma1 * d for e, zk, d in zip(els, z, zd, strict=True))
+        return [v, (torque(t, th) - friction - p.sigma2 * v + p.bias) / J, *zd]
 
     return solve_ivp(
         f,
         (0.0, t_end),
-        [0.0, 0.0, 0.0],
+        [0.0] * (2 + len(els)),
         method="Radau",
         rtol=1e-9,
         atol=1e-13,
@@ -51,15 +60,23 @@ def lugre_ode(
     )
 
 
-def ode_friction(p: LuGreParams, y: np.ndarray) -> np.ndarray:
-    """Friction torque on the joint (N·m) along an ODE solution y = (θ, ω, z)."""
-    _, v, z = y
-    zd = v - p.sigma0 * np.abs(v) * z / p.g(v)
-    return -(p.sigma0 * z + p.sigma1 * zd + p.sigma2 * v) + p.bias
+def ode_friction(p: LuGreParams, y: np.ndarray, model: str = "lugre") -> np.ndarray:
+    """Friction torque on the joint (N·m) along an ODE solution y = (θ, ω, z_1..z_N)."""
+    v, out = y[1], -p.sigma2 * y[1] + p.bias
+    for e, z in zip(elements(model, p), y[2:], strict=True):
+        out = out - (e.sigma0 * z + e.sigma1 * (v - e.sigma0 * np.abs(v) * z / _g(e, v)))
+    return out
+
+
+def steady_state(p: LuGreParams, v: float, model: str = "lugre") -> float:
+    """Steady sliding friction torque on the joint at velocity v != 0 (N·m): -(Σ g_k(v)·sgn v + σ2·v) + b."""
+    g = sum(float(_g(e, v)) for e in elements(model, p))
+    return -(np.copysign(g, v) + p.sigma2 * v) + p.bias
 
 
 class Rig:
-    """One joint of inertia J with the plant's friction element, driven by a torque motor (gain 1)."""
+    """One joint of inertia J with the plant's friction elements (its friction structure), driven by a
+    torque motor (gain 1)."""
 
     def __init__(self, spec: PlantSpec, joint: str, velocity_servo_gain: float = 0.0):
         j = spec.joints[spec.joint_index(joint)]
@@ -89,11 +106,22 @@ class Rig:
         self.model = mujoco.MjModel.from_xml_string(xml)
         self.data = mujoco.MjData(self.model)
         self.h = spec.timestep
+        self.structure = spec.friction_model
+        names = [
+            mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_ACTUATOR, a)
+            for a in range(self.model.nactuator)
+        ]
+        self.elements = [a for a, n in enumerate(names) if n.startswith("friction_")]
 
     def friction(self) -> float:
-        """Friction torque on the joint now (N·m), incl. σ2 damping."""
+        """Friction torque on the joint now (N·m), incl. σ2 damping (on the first element, or on the joint
+        for the Coulomb structure) and the frictionloss constraint's force (the rig's only constraint)."""
         d, m = self.data, self.model
-        return float(d.actuator_force[1] - m.actuator_damping[1] * d.qvel[0])
+        f = d.actuator_force[self.elements[0]]
+        for a in self.elements[1:]:
+            f += d.actuator_force[a]
+        damping = m.actuator_damping[self.elements[0]] + m.dof_damping[0]  # σ2 (Coulomb: on the joint)
+        return float(f - damping * d.qvel[0] + d.qfrc_constraint[0])
 
     def run(self, torque: Torque, t_end: float) -> dict[str, np.ndarray]:
         """Apply T(t, θ) (updated every physics step) from rest; log t, θ, ω, friction."""
@@ -116,18 +144,18 @@ def breakaway(spec: PlantSpec, joint: str, direction: int, duration: float = 2.0
     rate = direction * 1.5 * (p.fs + abs(p.bias)) / duration
     rig = Rig(spec, joint)
     sim = rig.run(lambda t, th: rate * t, duration)
-    ode = lugre_ode(p, rig.J, lambda t, th: rate * t, duration)
+    ode = lugre_ode(p, rig.J, lambda t, th: rate * t, duration, model=rig.structure)
     stick_sim = np.abs(sim["omega"]) <= p.vs
     stick_ode = np.abs(ode.y[1]) <= p.vs
     return {
         "simulated": float(np.max(np.abs(sim["friction"][stick_sim]))),
-        "reference": float(np.max(np.abs(ode_friction(p, ode.y)[stick_ode]))),
+        "reference": float(np.max(np.abs(ode_friction(p, ode.y, rig.structure)[stick_ode]))),
     }
 
 
 def sliding(spec: PlantSpec, joint: str, velocity: float, settle: float = 0.5) -> dict[str, float]:
     """Steady sliding friction at ≈ velocity (rad/s), held by a stiff velocity servo; the reference is
-    the LuGre steady state g(v)·sgn(v) + σ2·v - b at the velocity the simulation settles to."""
+    the structure's steady state Σ g_k(v)·sgn(v) + σ2·v - b at the velocity the simulation settles to."""
     J = spec.reflected_inertia(joint)
     p = spec.joints[spec.joint_index(joint)].friction
     # the servo must out-push the static level at the target speed, within Euler's stable range
@@ -135,10 +163,12 @@ def sliding(spec: PlantSpec, joint: str, velocity: float, settle: float = 0.5) -
         0.8 * J / spec.timestep, max(0.05 * J / spec.timestep, 2.0 * (p.fs + abs(p.bias)) / abs(velocity))
     )
     rig = Rig(spec, joint, velocity_servo_gain=gain)
+    # every element must have travelled ten of its presliding lengths F_s,k/σ0,k
+    settle = max(settle, 10.0 * max(e.fs / e.sigma0 for e in elements(rig.structure, p)) / abs(velocity))
     rig.data.ctrl[1] = velocity
     mujoco.mj_step(rig.model, rig.data, round(settle / spec.timestep))
     v = float(rig.data.qvel[0])
-    return {"velocity": v, "simulated": rig.friction(), "reference": rig.p.steady_state(v)}
+    return {"velocity": v, "simulated": rig.friction(), "reference": steady_state(rig.p, v, rig.structure)}
 
 
 def presliding(spec: PlantSpec, joint: str, fraction: float = 0.5, duration: float = 1.0) -> dict[str, float]:
@@ -151,7 +181,7 @@ def presliding(spec: PlantSpec, joint: str, fraction: float = 0.5, duration: flo
 
     rig = Rig(spec, joint)
     sim = rig.run(torque, duration)
-    ode = lugre_ode(p, rig.J, torque, duration, t_eval=[duration])
+    ode = lugre_ode(p, rig.J, torque, duration, t_eval=[duration], model=rig.structure)
     return {"simulated": float(sim["theta"][-1]), "reference": float(ode.y[0, -1])}
 
 
@@ -167,7 +197,9 @@ def stickslip_period(
     rig = Rig(spec, joint)
     sim = rig.run(torque, duration)
     t_eval = sim["t"]
-    ode = lugre_ode(p, rig.J, torque, duration, max_step=spec.timestep * 4, t_eval=t_eval)
+    ode = lugre_ode(
+        p, rig.J, torque, duration, max_step=spec.timestep * 4, t_eval=t_eval, model=rig.structure
+    )
     return {
         "simulated": _period(sim["t"], sim["omega"], pull_velocity),
         "reference": _period(ode.t, ode.y[1], pull_velocity),

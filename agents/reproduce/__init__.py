@@ -1,6 +1,7 @@
 """Reproduction of the documents' numbers on the simulator: one module per document (iurian2005: the M220,
-kang1998, wallenborg1987, janot2019: the EMPS on its measurements; friction_validation: the LuGre element
-against Radau), each contributing
+kang1998, wallenborg1987, janot2019: the EMPS on its measurements; friction_validation: the friction
+structures' elements against Radau; friction_phenomena: seed 000 §1.3's phenomena by structure), each
+contributing
 sections of rows {id, document, simulated, tolerance, pass, note}, figures and findings computed from the
 results. `scripts/reproduce.py` walks SECTIONS in order. Published numbers live in
 configs/published/<document>.yaml and the plant presets."""
@@ -79,13 +80,14 @@ class SectionResult:
 
 def sections() -> list[Section]:
     """Every section, in report order."""
-    from . import friction_validation, iurian2005, janot2019, kang1998, wallenborg1987
+    from . import friction_phenomena, friction_validation, iurian2005, janot2019, kang1998, wallenborg1987
 
     return [
         iurian2005.PLANT,
         wallenborg1987.PLANT,
         kang1998.PLANT,
         friction_validation.SECTION,
+        friction_phenomena.SECTION,
         kang1998.BASELINES,
         wallenborg1987.BASELINES,
         janot2019.IDIM,

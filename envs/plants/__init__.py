@@ -15,7 +15,7 @@ from types import ModuleType
 from typing import Any
 
 from ..config import ConfigError, Node, load_yaml, merge, plant_names, preset_path
-from ..friction import FRICTION_MODELS, check_numerics
+from ..friction import BRISTLE_MODELS, FRICTION_MODELS, check_numerics
 from ..identification import apply_identified, identified_section
 from .spec import JointSpec, PlantSpec
 
@@ -82,12 +82,12 @@ def plant_spec(
         for j in spec.joints:
             if j.friction is not None:
                 j.friction.validate(f"friction[{j.name}]")
-                if friction_model == "lugre":
+                if friction_model in BRISTLE_MODELS:
                     inertia = spec.reflected_inertia(j.name)
                     check_numerics(j.friction, inertia, spec.timestep, spec.integrator, f"friction[{j.name}]")
     except ConfigError as e:
         raise ConfigError(e.field, e.message, cfg.source) from None
-    if friction_model != "lugre":
+    if friction_model not in BRISTLE_MODELS:
         spec = replace(spec, joints=tuple(_strip(j, friction_model) for j in spec.joints))
     if check_ranges:
         check_randomization(spec)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+from ..friction import Element, elements
 from .spec import JointSpec, PlantSpec
 
 # Each shaft (or carriage) body carries a tiny explicit inertia (MuJoCo needs one on moving bodies) and
@@ -18,13 +19,18 @@ def body_share(j: JointSpec) -> float:
     return VISUAL_MASS_KG if j.kind == "slide" else VISUAL_INERTIA
 
 
+def _lugre(e: Element) -> str:
+    return f'lugre="{e.sigma0!r} {e.sigma1!r} {e.fc!r} {e.fs!r} {e.vs!r}"'
+
+
 def friction_joints(spec: PlantSpec) -> list[str]:
     """Joints that carry a friction actuator, in actuator order."""
     return [j.name for j in spec.joints if j.friction is not None]
 
 
 def to_mjcf(spec: PlantSpec) -> str:
-    """MJCF text of the plant. Actuator order: drive motor, friction elements, rate feedback, load-side
+    """MJCF text of the plant. Actuator order: drive motor, each frictional joint's first friction element
+    (friction_<joint>), the structure's further elements (friction_<joint>_<k>), rate feedback, load-side
     disturbance motor (its command is a torque in N·m)."""
     nsample = spec.substeps + 2  # history for delays up to one control period
     bodies, actuators, extra = [], [], []
@@ -52,19 +58,23 @@ def to_mjcf(spec: PlantSpec) -> str:
         f'ctrlrange="{-spec.command_limit!r} {spec.command_limit!r}" nsample="{nsample}" interp="zoh" '
         f'delay="{spec.delay!r}"/>'
     )
+    extras = []  # a structure's further elements, after every joint's first (which keeps its id)
     for j in spec.joints:
         p = j.friction
         if p is None:
             continue
-        lugre = (
-            f'lugre="{p.sigma0!r} {p.sigma1!r} {p.fc!r} {p.fs!r} {p.vs!r}" damping="{p.sigma2!r}" '
-            if spec.friction_model == "lugre"
-            else ""
-        )
+        els = elements(spec.friction_model, p)
+        lugre = f'{_lugre(els[0])} damping="{p.sigma2!r}" ' if els else ""
         actuators.append(
             f'<dcmotor name="friction_{j.name}" joint="{j.name}" input="none" resistance="1" '
             f'motorconst="0 0" {lugre}cogging="{p.bias!r} 0 {math.pi / 2!r}"/>'
         )
+        extras += [
+            f'<dcmotor name="friction_{j.name}_{k}" joint="{j.name}" input="none" resistance="1" '
+            f'motorconst="0 0" {_lugre(e)}/>'
+            for k, e in enumerate(els[1:], start=1)
+        ]
+    actuators += extras
     if spec.rate_feedback > 0 or spec.rate_loop:
         actuators.append(
             f'<velocity name="rate_feedback" joint="{spec.actuator_joint}" '

@@ -13,7 +13,7 @@ import mujoco
 import numpy as np
 
 from ..config import ConfigError, nonneg, number, positive
-from ..friction import LuGreParams, check_numerics
+from ..friction import BRISTLE_MODELS, LuGreParams, check_numerics, element_count, elements
 from ..sampler import stream
 from .mjcf import body_share, friction_joints
 from .spec import RANDOMIZATION_KEYS, PlantSpec
@@ -148,7 +148,7 @@ class EpisodeParams:
         scaled = spec_with(spec, self)
         for name, p in zip(names, self.friction, strict=True):
             p.validate(f"params.friction[{name}]")
-            if spec.friction_model == "lugre":
+            if spec.friction_model in BRISTLE_MODELS:  # the elements' stiffness and damping sum to σ0, σ1
                 check_numerics(
                     p,
                     scaled.reflected_inertia(name),
@@ -189,7 +189,8 @@ class ModelIndex:
 
     drive: int  # actuator id of the drive motor
     drive_ctrl: int  # its ctrl index
-    friction: tuple[int, ...]  # friction actuator ids
+    friction: tuple[int, ...]  # each frictional joint's first friction actuator (bias, σ2, element 0)
+    elements: tuple[tuple[int, int, int], ...]  # (actuator id, frictional joint, k) per LuGre element
     rate: int  # rate-feedback actuator id or -1
     disturbance_ctrl: int  # ctrl index of the load-side disturbance motor or -1
     dofs: tuple[int, ...]
@@ -199,10 +200,14 @@ class ModelIndex:
     def of(cls, model: mujoco.MjModel, spec: PlantSpec) -> ModelIndex:
         aid = lambda n: mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, n)  # noqa: E731
         drive = aid("drive")
+        names, n = friction_joints(spec), element_count(spec.friction_model)
+        first = tuple(aid(f"friction_{j}") for j in names)
         return cls(
             drive=drive,
             drive_ctrl=int(model.actuator_ctrladr[drive]),
-            friction=tuple(aid(f"friction_{n}") for n in friction_joints(spec)),
+            friction=first,
+            elements=tuple((a, i, 0) for i, a in enumerate(first))[: len(first) if n else 0]
+            + tuple((aid(f"friction_{j}_{k}"), i, k) for k in range(1, n) for i, j in enumerate(names)),
             rate=aid("rate_feedback"),
             disturbance_ctrl=int(model.actuator_ctrladr[aid("disturbance")])
             if aid("disturbance") >= 0
@@ -240,15 +245,18 @@ def _fields(spec: PlantSpec, idx: ModelIndex, p: EpisodeParams) -> dict[str, lis
         w["dof_armature"].append(((d,), J - body_share(j)))
         w["dof_damping"].append(((d,), c))
     fdofs = [idx.dofs[spec.joint_index(n)] for n in friction_joints(spec)]
+    els = [elements(spec.friction_model, f) for f in p.friction]
     for a, d, f in zip(idx.friction, fdofs, p.friction, strict=True):
         w["actuator_biasprm"] += [((a, 0), f.bias), ((a, 1), 0.0), ((a, 2), math.pi / 2)]
-        if spec.friction_model == "lugre":
-            w["actuator_dynprm"] += [((a, 5), f.sigma0), ((a, 6), f.sigma1)]
-            w["actuator_biasprm"] += [((a, 3), f.fc), ((a, 4), f.fs), ((a, 5), f.vs)]
+        if spec.friction_model in BRISTLE_MODELS:
             w["actuator_damping"].append(((a,), f.sigma2))
         elif spec.friction_model == "coulomb":  # Coulomb + viscous, as in the documents
             w["dof_frictionloss"].append(((d,), f.fc))
             w["dof_damping"].append(((d,), p.viscous[idx.dofs.index(d)] + f.sigma2))
+    for a, i, k in idx.elements:
+        e = els[i][k]
+        w["actuator_dynprm"] += [((a, 5), e.sigma0), ((a, 6), e.sigma1)]
+        w["actuator_biasprm"] += [((a, 3), e.fc), ((a, 4), e.fs), ((a, 5), e.vs)]
     w["actuator_gear"].append(((idx.drive, 0), p.actuator_gain))
     w["actuator_delay"].append(((idx.drive,), p.delay_steps(spec) * spec.timestep))
     if idx.rate >= 0:

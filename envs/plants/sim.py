@@ -104,20 +104,24 @@ class PlantSim:
         return StepResult(meas, d.qpos[list(self.dofs)].copy(), d.qvel[list(self.dofs)].copy(), diverged)
 
     def friction_torque(self) -> np.ndarray:
-        """Current friction torque on each frictional joint (N·m): LuGre/bias actuator + its σ2 damping."""
+        """Current friction torque on each frictional joint (N·m): its friction elements (the first with the
+        bias) + the first's σ2 damping."""
         d, m = self.data, self.model
         out = []
-        for a in self.idx.friction:
+        for i, a in enumerate(self.idx.friction):
             dof = int(m.jnt_dofadr[m.actuator_trnid[a, 0]])
-            out.append(joint_friction_torque(d.actuator_force[a], m.actuator_damping[a], d.qvel[dof]))
+            f = d.actuator_force[a]
+            for e, j, k in self.idx.elements:
+                if j == i and k > 0:
+                    f += d.actuator_force[e]
+            out.append(joint_friction_torque(f, m.actuator_damping[a], d.qvel[dof]))
         return np.array(out)
 
     def bristle_state(self) -> np.ndarray:
-        """LuGre bristle deflections z (rad), one per frictional joint (empty unless friction_model=lugre)."""
+        """Bristle deflections z (rad), one per LuGre element (idx.elements order; one per frictional joint
+        for lugre and dahl, none for coulomb)."""
         m = self.model
-        return np.array(
-            [self.data.act[m.actuator_actadr[a]] for a in self.idx.friction if m.actuator_actnum[a] > 0]
-        )
+        return np.array([self.data.act[m.actuator_actadr[a]] for a, _, _ in self.idx.elements])
 
 
 def linearize(sim: PlantSim, eps: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:

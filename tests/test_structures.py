@@ -1,0 +1,143 @@
+"""Friction structures beyond LuGre (seed 000's survey): Dahl and Maxwell-slip built from native LuGre
+elements, their MuJoCo elements against Radau, the per-joint sums every consumer reads (ground truth,
+privileged observation, drift) bit-identical across the single env, the vector env and a copy, and the
+phenomena of §1.3 that follow from their equations."""
+
+import pickle
+
+import numpy as np
+import pytest
+
+from frictiongym.agents.reproduce import friction_phenomena as phen
+from frictiongym.envs import validation
+from frictiongym.envs.friction import (
+    MAXWELL_SLIP_LENGTHS,
+    elements,
+    joint_levels,
+)
+from frictiongym.envs.plants import plant_spec
+from frictiongym.envs.servo_env import ServoEnv
+from frictiongym.envs.vector import ServoVectorEnv
+
+pytestmark = pytest.mark.filterwarnings("ignore::RuntimeWarning")  # scipy numerical Jacobian (stiff Radau)
+
+DRIFT = {"friction_drift": {"drift": [-0.5, 0.5], "step": [-0.5, -0.4], "step_at_s": [0.5, 1.5]}}
+
+
+def test_maxwell_slip_shares_lugres_stiffness_damping_and_static_curve():
+    p = plant_spec("kang_robot").drive_friction
+    els = elements("maxwell_slip", p)
+    assert sum(e.sigma0 for e in els) == pytest.approx(p.sigma0, rel=1e-12)
+    assert sum(e.sigma1 for e in els) == pytest.approx(p.sigma1, rel=1e-12)
+    assert joint_levels("maxwell_slip", p) == (p.fc, p.fs, p.bias)  # quarters of the levels sum exactly
+    # presliding lengths F_s,k/σ0,k spread as MAXWELL_SLIP_LENGTHS (ratios), over a decade and more
+    lengths = [e.fs / e.sigma0 for e in els]
+    assert np.allclose(
+        np.array(lengths) / lengths[1], np.array(MAXWELL_SLIP_LENGTHS) / MAXWELL_SLIP_LENGTHS[1]
+    )
+    for v in (0.3 * p.vs, p.vs, 5 * p.vs):  # the same steady-state friction as LuGre at every speed
+        assert validation.steady_state(p, v, "maxwell_slip") == pytest.approx(p.steady_state(v), rel=1e-12)
+
+
+def test_dahl_is_lugre_without_the_stribeck_drop():
+    p = plant_spec("kang_robot").drive_friction
+    (e,) = elements("dahl", p)
+    assert (e.fc, e.fs, e.sigma0) == (p.fc, p.fc, p.sigma0)
+    assert joint_levels("dahl", p) == (p.fc, p.fc, p.bias)
+    assert validation.steady_state(p, 0.5 * p.vs, "dahl") == pytest.approx(
+        validation.steady_state(p, 20 * p.vs, "dahl") + p.sigma2 * 19.5 * p.vs, rel=1e-12
+    )
+
+
+@pytest.mark.parametrize("structure", ["dahl", "maxwell_slip"])
+@pytest.mark.parametrize(("plant", "joint"), [("kang_robot", "rotor"), ("m220", "drive")])
+def test_native_elements_match_radau(structure, plant, joint):
+    spec = plant_spec(plant, friction_model=structure)
+    for d in (1, -1):
+        r = validation.breakaway(spec, joint, d)
+        assert r["simulated"] == pytest.approx(r["reference"], rel=0.02)
+    r = validation.presliding(spec, joint)
+    assert r["simulated"] == pytest.approx(r["reference"], rel=0.02)
+    r = validation.sliding(spec, joint, 0.5 * spec.drive_friction.vs)
+    assert r["simulated"] == pytest.approx(r["reference"], rel=0.02)
+
+
+def test_maxwell_slip_env_with_drift_is_bit_identical_single_vector_and_copy():
+    """The flexible servo has two frictional joints, so each joint's three further elements are summed
+    into the right joint; drift scales all eight elements."""
+    kw = {"randomize": True, "episode_s": 2.0, "overrides": {**DRIFT, "friction_model": "maxwell_slip"}}
+    v = ServoVectorEnv("flexible_speed_reversal", 2, nthread=2, **kw)
+    singles = [ServoEnv("flexible_speed_reversal", **kw) for _ in range(2)]
+    o, _ = v.reset(seed=20)
+    for i, s in enumerate(singles):
+        assert np.array_equal(s.reset(seed=20 + i)[0], o[i])
+    core = singles[0].core
+    assert len(core.elem_act) == 8 and len(core.fric_act) == 2
+    rng = np.random.default_rng(0)
+    twin, after = None, []
+    for step in range(v.scenario.episode_steps - 1):
+        a = rng.uniform(-1, 1, (2, 1)).astype(np.float32)
+        o, r, *_ = v.step(a)
+        truth = v.ground_truth()
+        for i, s in enumerate(singles):
+            oi, ri, *_ = s.step(a[i])
+            assert np.array_equal(o[i], oi) and r[i] == ri
+            gt = s.ground_truth()
+            for key in ("qpos", "friction_torque", "nonlinear_friction_torque", "bristle", "static_level"):
+                assert np.array_equal(truth[key][i], gt[key]), key
+        if twin is not None:
+            after.append((a[0], o[0]))
+        if step == 30:
+            twin = pickle.loads(pickle.dumps(singles[0]))
+    for a, o0 in after:
+        assert np.array_equal(twin.step(a)[0], o0)
+    # the friction torque is every element's force on its joint, less the first element's σ2·v
+    b, m = core.backend, core.model
+    for j, dof in enumerate(core.fric_dofs):
+        acts = [a for a, i, _ in core.idx.elements if i == j]
+        assert len(acts) == 4
+        by_hand = sum(b.force[a] for a in acts) - m.actuator_damping[acts[0]] * b.qvel[dof]
+        assert core.ground_truth(0)["friction_torque"][j] == pytest.approx(by_hand, rel=1e-12, abs=1e-15)
+    # drift writes each element's share of the level: a quarter each
+    lam = core.drift[0, core.k[0] - 1]
+    fc0 = core.params[0].friction[0].fc
+    for a, i, _ in core.idx.elements:
+        if i == 0:
+            assert m.actuator_biasprm[a, 3] == pytest.approx(0.25 * fc0 * lam, rel=1e-14)
+
+
+def test_privileged_spring_force_sums_the_elements():
+    kw = {
+        "randomize": True,
+        "overrides": {"friction_model": "maxwell_slip", "observation": {"privileged": True}},
+    }
+    v = ServoVectorEnv("kang_regulation", 1, **kw)
+    v.reset(seed=3)
+    for _ in range(5):
+        o, *_ = v.step(np.array([[0.2]], dtype=np.float32))
+    core = v.core
+    _, _, act, _ = core.backend.state()
+    unit = core.sc.action_scale * core.sc.spec.actuator_gain
+    spring = sum(
+        e.sigma0 * act[0, adr]
+        for e, adr in zip(elements("maxwell_slip", core.params[0].friction[0]), core.bristle_adr, strict=True)
+    )
+    assert o[0, -1] == pytest.approx(np.float32(spring / unit), rel=1e-6)
+
+
+def test_lag_sign_follows_the_bristle_damping():
+    """F = g + (u - 1)(g - σ1·v) while z lags the Stribeck drop (u = σ0·z/g): the presets' critically
+    damped bristles (σ1·v > g) give lower friction accelerating; a light σ1 gives the survey's lag."""
+    spec = phen.rig_spec("lugre")
+    assert phen.lag(spec, 10.0)["width"] < -0.05
+    p = spec.drive_friction
+    vbar = 1.5 * p.vs
+    light = phen.rig_spec("lugre", phen.LIGHT_SIGMA1 * float(p.g(vbar)) / vbar)
+    assert phen.lag(light, 10.0)["width"] > 0.01
+    assert abs(phen.lag(phen.rig_spec("dahl"), 10.0)["width"]) < 1e-3  # g constant: no lag
+
+
+def test_maxwell_slip_breakaway_rises_as_the_force_rate_falls_and_dahls_does_not():
+    ms, dahl = phen.rig_spec("maxwell_slip"), phen.rig_spec("dahl")
+    assert phen.breakaway(ms, 0.2) - phen.breakaway(ms, 20.0) > 0.05
+    assert abs(phen.breakaway(dahl, 0.2) - phen.breakaway(dahl, 20.0)) < 0.01
