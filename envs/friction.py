@@ -43,8 +43,12 @@ import numpy as np
 
 from .config import ConfigError, nonneg, positive
 
-FRICTION_MODELS = ("lugre", "dahl", "maxwell_slip", "coulomb", "viscous", "none")
-BRISTLE_MODELS = ("lugre", "dahl", "maxwell_slip")  # carried by native LuGre elements (dcmotor lugre)
+FRICTION_MODELS = ("lugre", "dahl", "maxwell_slip", "kang", "coulomb", "viscous", "none")
+BRISTLE_MODELS = ("lugre", "dahl", "maxwell_slip", "kang")  # carried by native LuGre elements (dcmotor lugre)
+# Kang's stick-slip model (seed 001 eq. 1-4, after Karnopp 1985): the static level holds within a stick band
+# of this fraction of the preset's Stribeck velocity (Kang: 0.01 deg/s, a fifth of §6's 0.05 deg/s
+# identification ramp), the Coulomb level outside it
+KANG_STICK_BAND = 0.01
 # Maxwell-slip elements: shares α_i of the levels and relative presliding lengths r_i (element i slips after
 # r_i·c·F_s/σ0 with c = Σ α_j/r_j, so that the stiffness shares (α_i/r_i)/c sum to 1): 0.37 to 10 LuGre
 # presliding lengths, so that the friction force builds up over a decade of displacement.
@@ -175,6 +179,8 @@ def elements(model: str, p: LuGreParams) -> tuple[Element, ...]:
         return (Element(p.sigma0, p.sigma1, p.fc, p.fs, p.vs),)
     if model == "dahl":
         return (Element(p.sigma0, p.sigma1, p.fc, p.fc, p.vs),)
+    if model == "kang":
+        return (Element(p.sigma0, p.sigma1, p.fc, p.fs, KANG_STICK_BAND * p.vs),)
     if model == "maxwell_slip":
         c = sum(a / r for a, r in zip(MAXWELL_SLIP_SHARES, MAXWELL_SLIP_LENGTHS, strict=True))
         return tuple(

@@ -8,13 +8,12 @@ import pickle
 import numpy as np
 import pytest
 
+from frictiongym.agents.classical import Southward
+from frictiongym.agents.evaluate import run_episode
 from frictiongym.agents.reproduce import friction_phenomena as phen
+from frictiongym.agents.reproduce.kang1998 import EPISODE
 from frictiongym.envs import validation
-from frictiongym.envs.friction import (
-    MAXWELL_SLIP_LENGTHS,
-    elements,
-    joint_levels,
-)
+from frictiongym.envs.friction import KANG_STICK_BAND, MAXWELL_SLIP_LENGTHS, elements, joint_levels
 from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.vector import ServoVectorEnv
@@ -49,7 +48,7 @@ def test_dahl_is_lugre_without_the_stribeck_drop():
     )
 
 
-@pytest.mark.parametrize("structure", ["dahl", "maxwell_slip"])
+@pytest.mark.parametrize("structure", ["dahl", "maxwell_slip", "kang"])
 @pytest.mark.parametrize(("plant", "joint"), [("kang_robot", "rotor"), ("m220", "drive")])
 def test_native_elements_match_radau(structure, plant, joint):
     spec = plant_spec(plant, friction_model=structure)
@@ -141,3 +140,24 @@ def test_maxwell_slip_breakaway_rises_as_the_force_rate_falls_and_dahls_does_not
     ms, dahl = phen.rig_spec("maxwell_slip"), phen.rig_spec("dahl")
     assert phen.breakaway(ms, 0.2) - phen.breakaway(ms, 20.0) > 0.05
     assert abs(phen.breakaway(dahl, 0.2) - phen.breakaway(dahl, 20.0)) < 0.01
+
+
+def test_kangs_model_drops_within_its_stick_band():
+    p = plant_spec("kang_robot").drive_friction
+    (e,) = elements("kang", p)
+    assert (e.fc, e.fs, e.vs) == (p.fc, p.fs, KANG_STICK_BAND * p.vs)
+    assert validation.steady_state(p, 0.05 * p.vs, "kang") == pytest.approx(
+        -(p.fc + p.sigma2 * 0.05 * p.vs) + p.bias
+    )
+
+
+def test_southwards_sampled_limit_cycle_is_larger_on_kangs_model_than_on_lugre():
+    """Seed 001 §3.1: the limit cycle comes from the friction's drop at zero speed under sample-and-hold;
+    LuGre spreads the drop over v_s = 1 deg/s, the paper's model makes it at once."""
+    amp = {
+        m: run_episode(Southward(), EPISODE, control_period_s=0.02, overrides={"friction_model": m}).metrics[
+            "limit_cycle_amp"
+        ]
+        for m in ("lugre", "kang")
+    }
+    assert amp["kang"] > 2 * amp["lugre"] > 0

@@ -1,7 +1,8 @@
 """Each plant's native friction elements against an independent stiff-ODE (Radau) solution of the same
 equations (envs/validation.py), for every bristle structure (seed 000: LuGre §1.4.6, Dahl §1.4.1,
-Maxwell-slip §1.4.7): break-away both ways, presliding, sliding at several speeds both ways, and the
-stick-slip period on Kang's rotor (none for Dahl, which has no drop from static to Coulomb level)."""
+Maxwell-slip §1.4.7; seed 001's stick-slip model): break-away both ways, presliding, sliding at several
+speeds both ways, and the stick-slip period on Kang's rotor (none for Dahl, which has no drop from static
+to Coulomb level)."""
 
 from __future__ import annotations
 
@@ -16,7 +17,12 @@ from frictiongym.envs.units import deg_to_rad
 from . import Section, row
 
 # sliding speeds (multiples of v_s): LuGre at five, the other structures at three
-SPEEDS = {"lugre": (0.5, 1.0, 2.0, 5.0, 20.0), "dahl": (0.5, 2.0, 20.0), "maxwell_slip": (0.5, 2.0, 20.0)}
+SPEEDS = {
+    "lugre": (0.5, 1.0, 2.0, 5.0, 20.0),
+    "dahl": (0.5, 2.0, 20.0),
+    "maxwell_slip": (0.5, 2.0, 20.0),
+    "kang": (0.5, 2.0, 20.0),  # past its drop (within the stick band, 0.01 v_s): the Coulomb level
+}
 
 
 def _prefix(model: str) -> str:
