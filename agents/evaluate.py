@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -13,7 +13,7 @@ from tqdm import tqdm
 from frictiongym.envs.plants import PlantSpec
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.servo_env import ServoEnv
-from frictiongym.envs.suites import Episode
+from frictiongym.envs.suites import STRUCTURAL, Episode
 
 from .base import Controller, EpisodeContext
 from .settings import knowledge_defaults
@@ -51,7 +51,9 @@ class EnvCache:
         self._scenarios: dict[str, Scenario] = {}
 
     def scenario(self, episode: Episode, **env_kwargs: Any) -> Scenario:
-        """The scenario as the user configured it (without any controller's hardware)."""
+        """The scenario as the user configured it, with the episode's structural keys (without any
+        controller's hardware)."""
+        env_kwargs = _with_structure(episode, env_kwargs)
         key = json.dumps([episode.scenario, episode.randomize, env_kwargs], sort_keys=True, default=str)
         if key not in self._scenarios:
             user = env_kwargs.get("overrides")
@@ -62,7 +64,7 @@ class EnvCache:
     def env(self, controller: Controller, episode: Episode, **env_kwargs: Any) -> ServoEnv:
         """The env for this controller on this episode's scenario, with the hardware it brings and the
         observation it reads."""
-        kw = dict(env_kwargs)
+        kw = _with_structure(episode, env_kwargs)
         overrides = controller_overrides(
             controller, self.scenario(episode, **env_kwargs), kw.pop("overrides", None)
         )
@@ -72,6 +74,14 @@ class EnvCache:
                 episode.scenario, randomize=episode.randomize, overrides=overrides, **kw
             )
         return self._envs[key]
+
+
+def _with_structure(episode: Episode, env_kwargs: dict[str, Any]) -> dict[str, Any]:
+    """env_kwargs with the episode's structural overrides (Episode.overrides) added to the user's."""
+    structure = episode.overrides()
+    if structure is None:
+        return dict(env_kwargs)
+    return {**env_kwargs, "overrides": {**(env_kwargs.get("overrides") or {}), **structure}}
 
 
 def controller_overrides(controller: Controller, scenario: Scenario, user: dict | None) -> dict | None:
@@ -99,12 +109,18 @@ def run_episode(
     """Run one suite episode. The controller's own hardware (plant_overrides) is added to the scenario;
     everything random comes from the episode's seed, so every controller sees the same episode. With
     `envs`, the env is taken from (and kept in) that cache. `design`: the plant model the controller is
-    designed on (default: the scenario's nominal preset), e.g. an identified one."""
-    env = (envs or EnvCache()).env(controller, episode, **env_kwargs)
+    designed on (default: the scenario's nominal preset, with the scenario's own friction structure when
+    the episode pins another: controllers are designed on the plant they were written for), e.g. an
+    identified one."""
+    cache = envs or EnvCache()
+    env = cache.env(controller, episode, **env_kwargs)
     sc = env.scenario  # its spec holds the nominal (document) plant; the episode's draw is hidden
+    if design is None:
+        own = replace(episode, params=tuple(kv for kv in episode.params if kv[0] not in STRUCTURAL))
+        design = cache.scenario(own, **env_kwargs).spec if episode.overrides() else sc.spec
     know = {**knowledge_defaults(), **(knowledge or {})}
     obs, _ = env.reset(seed=episode.seed, options=episode.options())
-    controller.reset(EpisodeContext(sc, design or sc.spec, know))
+    controller.reset(EpisodeContext(sc, design, know))
     total, done, info = 0.0, False, {}
     truth = controller.reads_truth
     while not done:

@@ -3,6 +3,9 @@
 
 - One axis at a time: each of AXES is pinned to a grid over its shift range (scales ×0.5…×1.5, the
   asymmetry shift ±0.25 of the Coulomb level, the delay 0…one control period), the others nominal.
+- Structures: the nominal plant with each friction structure (envs/friction.py: LuGre, Dahl, Maxwell-slip,
+  Kang's stick-slip model, Coulomb + viscous), the same static levels, bristle stiffness and episodes; the
+  controllers are designed (and the agents were trained) on the scenario's own structure.
 - Joint shifts: every axis drawn at once, in two separate sets: in-distribution (inside the plant preset's
   randomisation ranges, what the `nominal` agents trained on) and out-of-distribution (inside the study's
   wide box, outside the preset's ranges on at least one axis). Draws the plant's checks reject (e.g. a
@@ -76,12 +79,19 @@ def _admissible(scenario: str, values: dict[str, float]) -> bool:
     return True
 
 
-def plan(scenario: str, seeds: int, points: int, joint: int) -> tuple[list[Episode], dict[str, int]]:
+STRUCTURES = ("lugre", "dahl", "maxwell_slip", "kang", "coulomb")  # the structural axis (friction_model)
+
+
+def plan(
+    scenario: str, seeds: int, points: int, joint: int, structures: tuple[str, ...] = STRUCTURES
+) -> tuple[list[Episode], dict[str, int]]:
     """The study's episodes (nominal plant + pins; randomize off so only the pinned values move) and the
     number of rejected joint draws per set."""
     sc = load_scenario(scenario)
     h, ranges = sc.control_period, sc.spec.randomization
     episodes: list[Episode] = []
+    for model in structures:  # the same episodes (seeds) as every shift, on another friction structure
+        episodes += [Episode(scenario, SEEDS + i, False, (("friction_model", model),)) for i in range(seeds)]
     for axis in AXES:
         if axis.key not in ranges and axis.key != "delay_s":
             continue
@@ -110,11 +120,14 @@ def plan(scenario: str, seeds: int, points: int, joint: int) -> tuple[list[Episo
     return episodes, rejected
 
 
-def condition(e: Episode | dict[str, Any], ranges: dict[str, tuple[float, float]]) -> tuple[str, float]:
-    """(axis or joint set, shift value) of an episode or an episodes.csv row."""
+def condition(e: Episode | dict[str, Any], ranges: dict[str, tuple[float, float]]) -> tuple[str, float | str]:
+    """(axis or joint set, shift value; for the structural axis the structure's name) of an episode or an
+    episodes.csv row."""
     import json
 
     params = dict(e.params) if isinstance(e, Episode) else json.loads(e["params"] or "{}")
+    if "friction_model" in params:
+        return "friction_model", params["friction_model"]
     if len(params) == 1:
         ((key, value),) = params.items()
         return key, value
@@ -173,6 +186,8 @@ def findings(table: list[dict[str, Any]], controllers: list[str]) -> list[str]:
         nominal[c] = at[0]["mean"] if at else math.nan
     lines = []
     for axis, cells in by.items():
+        if axis == "friction_model":  # categorical: structure_findings
+            continue
         shifts = sorted({s for _, s in cells})
         leaders, lost, broken = [], [], []
         for s in shifts:
@@ -201,6 +216,58 @@ def findings(table: list[dict[str, Any]], controllers: list[str]) -> list[str]:
                 else " No controller breaks."
             )
         )
+    return lines
+
+
+def structure_findings(table: list[dict[str, Any]], controllers: list[str], own: str) -> list[str]:
+    """Markdown for the structural axis: a table of the main metric per controller and structure, then
+    per structure the best controller, whether each learned controller keeps its lead over the best
+    classical baseline it had on the scenario's own structure `own`, and who breaks (main metric above
+    DEGRADED x its own value on `own`)."""
+    cells = {(r["controller"], r["shift"]): r for r in table if r["axis"] == "friction_model"}
+    structures = [s for s in STRUCTURES if any(k[1] == s for k in cells)]
+    ran = [c for c in controllers if any((c, s) in cells for s in structures)]
+    if not structures:
+        return []
+    lines = [
+        "| controller | " + " | ".join(structures) + " |",
+        "|---|" + "---|" * len(structures),
+    ]
+    for c in ran:
+        vals = [f"{cells[(c, s)]['mean']:.4g}" if (c, s) in cells else "" for s in structures]
+        lines.append(f"| {c} | " + " | ".join(vals) + " |")
+    classical = [c for c in ran if c in registry.BUILTIN]
+    learned = [c for c in ran if c not in registry.BUILTIN]
+
+    def best_classical(s: str) -> float:
+        return min((cells[(b, s)]["mean"] for b in classical if (b, s) in cells), default=math.nan)
+
+    lines.append("")
+    for s in structures:
+        here = [(cells[(c, s)]["mean"], c) for c in ran if (c, s) in cells]
+        text = f"- **{s}**: best {min(here)[1]}."
+        kept = [c for c in learned if (c, s) in cells and cells[(c, s)]["mean"] < best_classical(s)]
+        led = [c for c in learned if (c, own) in cells and cells[(c, own)]["mean"] < best_classical(own)]
+        if led:
+            lost = [c for c in led if c not in kept]
+            text += (
+                f" Learned, ahead of every classical baseline on {own}: "
+                + (f"keep the lead {', '.join(kept)}; " if kept else "")
+                + (f"lose it {', '.join(lost)}." if lost else "all keep it.")
+            )
+        broken = [
+            c
+            for c in ran
+            if (c, s) in cells
+            and (c, own) in cells
+            and cells[(c, s)]["mean"] > DEGRADED * cells[(c, own)]["mean"]
+        ]
+        text += (
+            f" Breaks (> {DEGRADED}x its value on {own}): {', '.join(broken)}."
+            if broken
+            else " No one breaks."
+        )
+        lines.append(text)
     return lines
 
 
@@ -237,6 +304,43 @@ def plot(table: list[dict[str, Any]], scenario: str, path: Path) -> None:
     ax[1, 0].set_ylabel("score (1 - m/m_Zero)")
     ax[0, -1].legend(fontsize=6)
     fig.suptitle(f"sim-to-real: {scenario}")
+    fig.tight_layout()
+    atomic_write(path, lambda p: fig.savefig(p, dpi=90, format="png"))
+    plt.close(fig)
+
+
+def plot_structures(table: list[dict[str, Any]], scenario: str, path: Path) -> None:
+    """The main metric (95 % intervals) of each controller on each friction structure."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [r for r in table if r["axis"] == "friction_model" and r["controller"] != "Zero"]
+    structures = [s for s in STRUCTURES if any(r["shift"] == s for r in rows)]
+    names = sorted({r["controller"] for r in rows})
+    fig, ax = plt.subplots(figsize=(1.4 * len(structures) + 3, 3.8))
+    w = 0.8 / max(len(names), 1)
+    for k, name in enumerate(names):
+        rs = [
+            next((r for r in rows if r["controller"] == name and r["shift"] == s), None) for s in structures
+        ]
+        mean = [r["mean"] if r else np.nan for r in rs]
+        err = [
+            [r["mean"] - r["ci_low"] if r else 0 for r in rs],
+            [r["ci_high"] - r["mean"] if r else 0 for r in rs],
+        ]
+        ax.bar(
+            np.arange(len(structures)) + (k - (len(names) - 1) / 2) * w,
+            mean,
+            w,
+            yerr=err,
+            capsize=2,
+            label=name,
+        )
+    ax.set_xticks(np.arange(len(structures)), structures)
+    ax.set(yscale="log", ylabel=rows[0]["metric"] if rows else "", title=f"friction structures: {scenario}")
+    ax.legend(fontsize=6)
     fig.tight_layout()
     atomic_write(path, lambda p: fig.savefig(p, dpi=90, format="png"))
     plt.close(fig)
@@ -370,6 +474,7 @@ def run(
     progress: bool = True,
     model_error_draws: int = 10,
     ray: engine.Ray | None = None,
+    structures: tuple[str, ...] = STRUCTURES,
 ) -> tuple[list[dict[str, Any]], str]:
     """Run the study into out/ (episodes.csv, sim2real.csv, sim2real.png, sim2real.md, and the closing-the-
     loop study model_error.csv / .png); returns the table and the markdown."""
@@ -377,8 +482,9 @@ def run(
     available = registry.available(models)
     names = controllers or list(available)
     names = ["Zero", *(n for n in names if n != "Zero")]
-    episodes, rejected = plan(scenario, seeds, points, joint)
+    episodes, rejected = plan(scenario, seeds, points, joint, structures)
     options = {
+        "structures": list(structures),
         "study": "sim2real",
         "scenario": scenario,
         "seeds": seeds,
@@ -391,8 +497,11 @@ def run(
     table = summarize(rows, scenario)
     atomic_text(out / "sim2real.csv", csv_text(table))
     plot(table, scenario, out / "sim2real.png")
+    if structures:
+        plot_structures(table, scenario, out / "sim2real_structures.png")
     ran = [n for n in names if n != "Zero" and any(r["controller"] == n for r in table)]
     sc = load_scenario(scenario)
+    own = sc.spec.friction_model
     joint_rows = [r for r in table if r["axis"].startswith("joint") and r["controller"] != "Zero"]
     md = [
         f"# Sim-to-real study: {scenario}",
@@ -404,6 +513,12 @@ def run(
         "## Where each controller keeps its lead, and where it breaks",
         "",
         *findings(table, ran),
+        "",
+        f"## Friction structures (designed and trained on {own})",
+        "",
+        *structure_findings(table, ran, own),
+        "",
+        "![friction structures](sim2real_structures.png)",
         "",
         "## Joint shifts",
         "",

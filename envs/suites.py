@@ -15,16 +15,26 @@ FILE = "suites.yaml"
 @dataclass(frozen=True)
 class Episode:
     """One episode: (scenario, seed, randomize), and optionally pinned parameters (randomization keys and
-    values, sorted) that replace the drawn ones (reset(options={"params": ...}): sim-to-real shifts)."""
+    values, sorted) that replace the drawn ones (reset(options={"params": ...}): sim-to-real shifts). The
+    pinned key `friction_model` (a name, not a number) is structural: the env is built with that friction
+    structure (the scenario key of the same name), the sim-to-real study's structural axis."""
 
     scenario: str
     seed: int
     randomize: bool
-    params: tuple[tuple[str, float], ...] = ()
+    params: tuple[tuple[str, float | str], ...] = ()
 
     def options(self) -> dict | None:
-        """The reset options of the episode."""
-        return {"params": dict(self.params)} if self.params else None
+        """The reset options of the episode (the pinned values, without the structural key)."""
+        pinned = {k: v for k, v in self.params if k not in STRUCTURAL}
+        return {"params": pinned} if pinned else None
+
+    def overrides(self) -> dict | None:
+        """The scenario overrides the episode's structural keys make (None: the scenario as it is)."""
+        return {k: v for k, v in self.params if k in STRUCTURAL} or None
+
+
+STRUCTURAL = ("friction_model",)  # pinned keys that change how the env is built, not a drawn value
 
 
 def suite_names() -> list[str]:

@@ -1,15 +1,18 @@
 """Sim-to-real friction study: controllers designed or trained on nominal (or randomised) plants, evaluated
 on plants shifted one axis at a time (friction level, asymmetry, Stribeck velocity, σ0, viscous friction,
-inertia, delay up to one control period) and on joint shifts, in- and out-of-distribution.
+inertia, delay up to one control period), on other friction structures (Dahl, Maxwell-slip, Kang's
+stick-slip model, Coulomb + viscous: the structural axis) and on joint shifts, in- and out-of-distribution.
 
     python scripts/sim2real.py [--scenario m220_reversal_tracking] [--models DIR ...] [--controllers ...]
                                [--seeds 10] [--points 5] [--joint 20] [--model-error 10] [--workers N]
+                               [--structures lugre dahl maxwell_slip kang coulomb]
                                [--out out/sim2real]
 
 Writes OUT/episodes.csv (resumable), sim2real.csv (controller, axis, shift, metric mean and 95 % CI),
-sim2real.png (robustness curves), model_error.csv/.png (classical baselines designed on the identified
-model of randomised true plants vs on the true parameters: the closing-the-loop study of identification)
-and sim2real.md (which controller keeps its lead where, where each breaks, what model error costs).
+sim2real.png (robustness curves), sim2real_structures.png (the main metric on each friction structure),
+model_error.csv/.png (classical baselines designed on the identified model of randomised true plants vs on
+the true parameters: the closing-the-loop study of identification) and sim2real.md (which controller keeps
+its lead where, where each breaks, what model error costs).
 Default models: the committed agents (agents/models/sim2real: trained without randomisation and with
 wide ranges; agents/models/headline: with the nominal ranges); those that apply to the scenario run.
 """
@@ -39,6 +42,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--model-error", type=int, default=10, help="true plants of the identification closing-the-loop study"
     )
+    ap.add_argument(
+        "--structures",
+        nargs="*",
+        default=list(sim2real.STRUCTURES),
+        choices=sim2real.STRUCTURES,
+        help="friction structures of the structural axis (default: all; none: no structural axis)",
+    )
     add_backend_arguments(ap)
     ap.add_argument("--out", type=Path, default=Path("out/sim2real"))
     args = ap.parse_args(argv)
@@ -60,6 +70,7 @@ def main(argv: list[str] | None = None) -> int:
             args.workers,
             model_error_draws=args.model_error,
             ray=ray,
+            structures=tuple(args.structures),
         )
         print(text)
         return 0

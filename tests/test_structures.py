@@ -161,3 +161,24 @@ def test_southwards_sampled_limit_cycle_is_larger_on_kangs_model_than_on_lugre()
         for m in ("lugre", "kang")
     }
     assert amp["kang"] > 2 * amp["lugre"] > 0
+
+
+def test_an_episode_pinning_a_structure_runs_on_it_and_designs_on_the_scenarios_own():
+    """The sim-to-real structural axis: Episode(..., (("friction_model", m),)) builds the env with that
+    structure (the same episode as the scenario override gives, bit for bit) while the controller is
+    designed on the scenario's own plant; the pin survives the engine's CSV round trip."""
+    from frictiongym.agents import engine
+    from frictiongym.agents.classical import PD
+    from frictiongym.agents.evaluate import EnvCache
+    from frictiongym.envs.suites import Episode
+
+    e = Episode("kang_regulation", 5, False, (("friction_model", "coulomb"),))
+    assert e.options() is None and e.overrides() == {"friction_model": "coulomb"}
+    cache = EnvCache()
+    pinned = run_episode(PD(), e, envs=cache)
+    assert cache.scenario(e).spec.friction_model == "coulomb"
+    direct = run_episode(PD(), Episode("kang_regulation", 5, False), overrides={"friction_model": "coulomb"})
+    np.testing.assert_equal(pinned.metrics, direct.metrics)  # nan-aware, exact
+    assert pinned.metrics["iae"] != run_episode(PD(), Episode("kang_regulation", 5, False)).metrics["iae"]
+    job = engine.Job("PD", e.scenario, e.seed, e.randomize, engine.params_text(e))
+    assert job.episode == e

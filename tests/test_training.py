@@ -268,9 +268,15 @@ def test_sim2real_on_a_tiny_grid(tmp_path):
     pd = {(r["axis"], r["shift"]): float(r["mean"]) for r in rows if r["controller"] == "PD"}
     # more friction, larger final error of PD (its stick band [θ_L, θ_H] widens, seed 001 eq. 6)
     assert pd[("friction_scale", "1.5")] > pd[("friction_scale", "0.5")]
+    # the structural axis: every structure on the same episodes; Coulomb + viscous (static level F_c < F_s)
+    # narrows PD's stick band
+    assert {s for a, s in pd if a == "friction_model"} == set(sim2real.STRUCTURES)
+    assert pd[("friction_model", "coulomb")] < pd[("friction_model", "lugre")]
     assert (tmp_path / "sim2real.png").stat().st_size > 0
     md = (tmp_path / "sim2real.md").read_text()
     assert "Where each controller keeps its lead" in md and "performance lost to model error" in md
+    assert "## Friction structures (designed and trained on lugre)" in md
+    assert (tmp_path / "sim2real_structures.png").stat().st_size > 0
     assert "1 randomised true plants" in md
     designs = [r["design"] for r in csv.DictReader((tmp_path / "model_error.csv").read_text().splitlines())]
     assert sorted(designs) == ["identified", "nominal", "true"]  # PD, on one true plant
