@@ -177,7 +177,7 @@ def findings(table: list[dict[str, Any]], controllers: list[str]) -> list[str]:
     for r in table:
         by[r["axis"]][(r["controller"], r["shift"])] = r
     classical = [c for c in controllers if c in registry.BUILTIN]
-    learned = [c for c in controllers if c not in registry.BUILTIN]
+    learned = [c for c in controllers if c not in registry.BUILTIN and c not in registry.LIMITS]
     nominal = {}
     for c in controllers:
         at = [
@@ -237,17 +237,20 @@ def structure_findings(table: list[dict[str, Any]], controllers: list[str], own:
         vals = [f"{cells[(c, s)]['mean']:.4g}" if (c, s) in cells else "" for s in structures]
         lines.append(f"| {c} | " + " | ".join(vals) + " |")
     classical = [c for c in ran if c in registry.BUILTIN]
-    learned = [c for c in ran if c not in registry.BUILTIN]
+    learned = [c for c in ran if c not in registry.BUILTIN and c not in registry.LIMITS]
 
     def best_classical(s: str) -> float:
         return min((cells[(b, s)]["mean"] for b in classical if (b, s) in cells), default=math.nan)
 
     lines.append("")
     for s in structures:
-        here = [(cells[(c, s)]["mean"], c) for c in ran if (c, s) in cells]
-        text = f"- **{s}**: best {min(here)[1]}."
+        here = [(cells[(c, s)]["mean"], c) for c in ran if (c, s) in cells and c not in registry.LIMITS]
+        text = f"- **{s}**: best {min(here)[1]} (the reference rows Ideal, Oracle aside)."
         kept = [c for c in learned if (c, s) in cells and cells[(c, s)]["mean"] < best_classical(s)]
         led = [c for c in learned if (c, own) in cells and cells[(c, own)]["mean"] < best_classical(own)]
+        gained = [c for c in kept if c not in led]
+        if gained:
+            text += f" Learned, ahead of every classical baseline here but not on {own}: {', '.join(gained)}."
         if led:
             lost = [c for c in led if c not in kept]
             text += (
@@ -319,7 +322,7 @@ def plot_structures(table: list[dict[str, Any]], scenario: str, path: Path) -> N
     rows = [r for r in table if r["axis"] == "friction_model" and r["controller"] != "Zero"]
     structures = [s for s in STRUCTURES if any(r["shift"] == s for r in rows)]
     names = sorted({r["controller"] for r in rows})
-    fig, ax = plt.subplots(figsize=(1.4 * len(structures) + 3, 3.8))
+    fig, ax = plt.subplots(figsize=(1.4 * len(structures) + 5, 3.8))
     w = 0.8 / max(len(names), 1)
     for k, name in enumerate(names):
         rs = [
@@ -337,10 +340,11 @@ def plot_structures(table: list[dict[str, Any]], scenario: str, path: Path) -> N
             yerr=err,
             capsize=2,
             label=name,
+            color=plt.cm.tab20(k % 20),
         )
     ax.set_xticks(np.arange(len(structures)), structures)
     ax.set(yscale="log", ylabel=rows[0]["metric"] if rows else "", title=f"friction structures: {scenario}")
-    ax.legend(fontsize=6)
+    ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     atomic_write(path, lambda p: fig.savefig(p, dpi=90, format="png"))
     plt.close(fig)

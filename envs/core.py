@@ -15,7 +15,7 @@ import mujoco
 import numpy as np
 from mujoco.batch import Batch, SimulationError
 
-from .friction import BRISTLE_MODELS, element_levels, elements, joint_friction_torque, joint_levels
+from .friction import element_levels, elements, joint_friction_torque, joint_levels
 from .metrics import episode_metrics
 from .plants.mjcf import to_mjcf
 from .plants.params import EpisodeParams, ModelIndex, apply, apply_batch
@@ -48,6 +48,17 @@ _DIVERGENCE_COUNTS = itemgetter(*DIVERGENCE_WARNINGS.tolist())  # their counts f
 def mujoco_diverged(warning_counts: np.ndarray) -> bool:
     """Whether an MjData's warning counts (`data.warning.number`) show a divergence warning."""
     return any(_DIVERGENCE_COUNTS(warning_counts.tolist()))
+
+
+def frictionloss_torque(model: mujoco.MjModel, data: mujoco.MjData, dofs: np.ndarray) -> np.ndarray:
+    """The frictionloss constraint's torque on each dof of `dofs` (N·m, opposing motion) at the data's
+    state: mj_forward on `data` (a scratch copy), then the FRICTION_DOF rows of efc_force."""
+    mujoco.mj_forward(model, data)
+    out = np.zeros(len(dofs))
+    rows = np.flatnonzero(data.efc_type[: data.nefc] == mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF)
+    for r in rows:
+        out[np.flatnonzero(dofs == data.efc_id[r])] += data.efc_force[r]
+    return out
 
 
 class SingleBackend:
@@ -98,6 +109,12 @@ class SingleBackend:
     def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         return self.qpos[None], self.qvel[None], self.act[None], self.force[None]
 
+    def frictionloss(self, ids: np.ndarray, dofs: np.ndarray) -> np.ndarray:
+        """(len(ids), len(dofs)) frictionloss torques now (the Coulomb structure's friction)."""
+        scratch = mujoco.MjData(self.model)
+        mujoco.mj_copyData(scratch, self.model, self.data)
+        return frictionloss_torque(self.model, scratch, dofs)[None]
+
 
 class BatchBackend:
     """A mujoco.batch.Batch of n simulations on nthread threads."""
@@ -146,6 +163,11 @@ class BatchBackend:
 
     def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         return self.qpos, self.qvel, self.act, self.force
+
+    def frictionloss(self, ids: np.ndarray, dofs: np.ndarray) -> np.ndarray:
+        return np.array(
+            [frictionloss_torque(self.batch.get_model(i), self.batch.get_data(i), dofs) for i in ids]
+        )
 
 
 # What an episode in progress holds beyond its MjModel (episode parameters are written into it) and MjData.
@@ -332,7 +354,7 @@ class ServoCore:
             self.params[i], self.noise_rng[i], self.jitter_rng[i] = p, noise, jitter
             self.noise_scale[i] = p.noise_scale
             model = spec.friction_model
-            self.sigma2[i] = [f.sigma2 if model in BRISTLE_MODELS else 0.0 for f in p.friction]
+            self.sigma2[i] = [f.sigma2 for f in p.friction]  # coulomb: in the joint's damping
             self.delay_steps[i], self.jitter_steps[i] = p.delay_steps(spec), p.jitter_steps(spec)
             self.levels[i] = [joint_levels(model, f) for f in p.friction] or np.zeros((0, 3))
             per_joint = [element_levels(model, f) for f in p.friction]
@@ -518,7 +540,11 @@ class ServoCore:
             parts["privileged"] = np.concatenate(
                 [
                     (truth * inv)[:, None],
-                    (self.per_joint(force) - self.sigma2[ids] * qvel[:, self.fric_dofs]) / unit,
+                    (
+                        self._with_frictionloss(self.per_joint(force), ids)
+                        - self.sigma2[ids] * qvel[:, self.fric_dofs]
+                    )
+                    / unit,
                     spring / unit,
                 ],
                 axis=1,
@@ -538,7 +564,7 @@ class ServoCore:
         if self._fast:  # the same values from the MjData, with plain indices
             b = self.backend
             qv, s2 = b.qvel, self.sigma2[0]
-            f = self.per_joint(b.force)
+            f = self._with_frictionloss(self.per_joint(b.force), 0)
             return {
                 "qpos": b.qpos.copy(),
                 "qvel": qv.copy(),
@@ -551,7 +577,7 @@ class ServoCore:
             }
         qpos, qvel, act, force = self.backend.state()
         qv = qvel[i]
-        f = self.per_joint(force[i])
+        f = self._with_frictionloss(self.per_joint(force[i]), np.arange(self.n)[i])
         return {
             "qpos": qpos[i].copy(),
             "qvel": qv.copy(),
@@ -560,6 +586,14 @@ class ServoCore:
             "nonlinear_friction_torque": f,
             **now,
         }
+
+    def _with_frictionloss(self, f: np.ndarray, ids: np.ndarray | int) -> np.ndarray:
+        """Per-joint element forces f of simulations ids plus, for the Coulomb structure, its frictionloss
+        torques now (N·m); the other structures' friction is all in their elements' actuator forces."""
+        if self.sc.spec.friction_model != "coulomb":
+            return f
+        fl = self.backend.frictionloss(np.atleast_1d(ids), self.fric_dofs)
+        return f + (fl if np.ndim(ids) else fl[0])
 
     def per_joint(self, x: np.ndarray, primary: bool = True) -> np.ndarray:
         """Per frictional joint, the sum over its LuGre elements: of actuator forces x (..., nu) (primary:

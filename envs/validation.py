@@ -10,8 +10,9 @@ the inertia the friction sees (the reflected inertia for the M220), so the numer
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -213,3 +214,130 @@ def _period(t: np.ndarray, omega: np.ndarray, pull_velocity: float) -> float:
     if len(onsets) < 3:
         return float("nan")
     return float(np.mean(np.diff(onsets[1:])))
+
+
+# ------------------------------------------------------------------------------ reference-only structures
+# Seed 000's Bliman-Sorine (§1.4.5) and reset-integrator (§1.4.3) models are not native MuJoCo elements
+# (docs/physics.md, "Friction structures": a passive element cannot subtract a slow branch, and no native
+# element switches its equations inside a physics step). Their reference implementations below run the
+# phenomena experiments of the report on a one-joint rig by a fine fixed step (explicit in the friction
+# state, semi-implicit in the joint), outside the simulator: they are never an env's plant.
+
+
+@dataclass(frozen=True)
+class BlimanSorine:
+    """d²F/ds² + 2ξω·dF/ds + ω²F = ω²·F_C·sgn(v), ds = |v|·dt (§1.4.5). From the preset: ω = σ0/F_C (Dahl's
+    spatial rate), ξ such that the overshoot of a start from rest is F_s/F_C - 1 (the stiction peak; ξ = 1
+    where F_s = F_C). State (F, H = dF/dx): dF/dt = H·v, dH/dt = v·ω²(F_C·sgn v - F) - 2ξω|v|·H, so the
+    stiffness dF/dx is continuous through a velocity reversal (dF/ds = sgn(v)·H between reversals)."""
+
+    fc: float
+    omega: float
+    xi: float
+
+    @classmethod
+    def of(cls, p: LuGreParams) -> BlimanSorine:
+        overshoot = p.fs / p.fc - 1.0
+        if overshoot <= 0.0:
+            return cls(p.fc, p.sigma0 / p.fc, 1.0)
+        ln = math.log(overshoot)
+        return cls(p.fc, p.sigma0 / p.fc, -ln / math.sqrt(math.pi**2 + ln**2))
+
+    def rate(self, v: float, x: tuple[float, float]) -> tuple[float, float]:
+        f, k = x  # F and dF/dx
+        w = self.omega
+        return k * v, v * w * w * (self.fc * math.copysign(1.0, v) * (v != 0) - f) - 2 * self.xi * w * abs(
+            v
+        ) * k
+
+    def stiffness(self, v: float) -> float:
+        """The state's fastest rate (1/s) at velocity v, for the step size."""
+        return self.omega * abs(v)
+
+    def force(self, v: float, x: tuple[float, float], dx: tuple[float, float]) -> float:
+        return x[0]
+
+
+@dataclass(frozen=True)
+class ResetIntegrator:
+    """ż = v unless sliding (z at ±z1 and v pushing it further), F = σ0(1 + a)z + σ1ż while |z| < z1,
+    σ0·z1·sgn(z) at the limit (§1.4.3). From the preset: z1 = F_C/σ0, a = F_s/F_C - 1 (the stiction
+    peak σ0(1 + a)z1 = F_s), σ1 the preset's."""
+
+    sigma0: float
+    sigma1: float
+    z1: float
+    a: float
+
+    @classmethod
+    def of(cls, p: LuGreParams) -> ResetIntegrator:
+        return cls(p.sigma0, p.sigma1, p.fc / p.sigma0, p.fs / p.fc - 1.0)
+
+    def rate(self, v: float, x: tuple[float]) -> tuple[float]:
+        (z,) = x
+        sliding = (v > 0 and z >= self.z1) or (v < 0 and z <= -self.z1)
+        return (0.0 if sliding else v,)
+
+    def stiffness(self, v: float) -> float:
+        return 0.0
+
+    def force(self, v: float, x: tuple[float], dx: tuple[float]) -> float:
+        (z,) = x
+        if abs(z) >= self.z1:
+            return self.sigma0 * self.z1 * math.copysign(1.0, z)
+        return self.sigma0 * (1.0 + self.a) * z + self.sigma1 * dx[0]
+
+
+REFERENCE_STRUCTURES = {"bliman_sorine": BlimanSorine, "reset_integrator": ResetIntegrator}
+REFERENCE_STEP_S = 2e-5  # fixed step of the reference runs (Kang's rotor: h·sqrt(σ0/J) = 0.006)
+
+
+def reference_run(
+    structure: str, p: LuGreParams, J: float, torque: Torque, t_end: float, h: float = REFERENCE_STEP_S
+) -> dict[str, np.ndarray]:
+    """A reference-only structure on a one-joint rig of inertia J under T(t, θ) from rest (σ2 and the bias
+    as the native structures have them); logs t, θ, ω, friction torque on the joint, as Rig.run."""
+    model = REFERENCE_STRUCTURES[structure].of(p)
+    n = round(t_end / h)
+    x = (0.0, 0.0) if structure == "bliman_sorine" else (0.0,)
+    th = v = 0.0
+    log = np.empty((n, 4))
+    for k in range(n):
+        t = k * h
+        dx = model.rate(v, x)
+        f = -(model.force(v, x, dx) + p.sigma2 * v) + p.bias
+        v += h * (torque(t, th) + f) / J
+        th += h * v
+        x = _advance(model, v, x, h)
+        log[k] = (t + h, th, v, f)
+    return {"t": log[:, 0], "theta": log[:, 1], "omega": log[:, 2], "friction": log[:, 3]}
+
+
+def reference_friction_along(
+    structure: str,
+    p: LuGreParams,
+    velocity: Callable[[float], float],
+    t_end: float,
+    h: float = REFERENCE_STEP_S,
+) -> dict[str, np.ndarray]:
+    """The friction torque of a reference-only structure along an imposed velocity v(t) (as a stiff
+    velocity servo imposes it on the rig): t, v, friction."""
+    model = REFERENCE_STRUCTURES[structure].of(p)
+    n = round(t_end / h)
+    x = (0.0, 0.0) if structure == "bliman_sorine" else (0.0,)
+    log = np.empty((n, 3))
+    for k in range(n):
+        t = k * h
+        v = velocity(t)
+        dx = model.rate(v, x)
+        log[k] = (t, v, -(model.force(v, x, dx) + p.sigma2 * v) + p.bias)
+        x = _advance(model, v, x, h)
+    return {"t": log[:, 0], "v": log[:, 1], "friction": log[:, 2]}
+
+
+def _advance(model: BlimanSorine | ResetIntegrator, v: float, x: tuple, h: float) -> tuple:
+    """The friction state over h at velocity v, by explicit steps of at most 0.05 / the state's rate."""
+    m = max(1, math.ceil(model.stiffness(v) * h / 0.05))
+    for _ in range(m):
+        x = tuple(xi + h / m * di for xi, di in zip(x, model.rate(v, x), strict=True))
+    return x

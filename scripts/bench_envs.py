@@ -10,7 +10,11 @@ The bare loops step the same physics as the env: they start from the env's initi
 again from it when an episode would end. (A fresh MjData at exact rest steps measurably faster than the
 same model in an episode's state, ~1 µs of 27 µs on the M220, which is not the env's overhead.)
 
-    python scripts/bench_envs.py [--scenario kang_regulation] [--seconds 2]
+    python scripts/bench_envs.py [--scenarios kang_regulation ...] [--seconds 2]
+                                 [--friction-models lugre maxwell_slip ...]
+
+With several friction structures (envs/friction.py), each scenario is measured on each of them, and the
+env steps/s of every structure relative to LuGre's, on the same scenario in the same run.
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from mujoco.batch import Batch
 
 import frictiongym.envs  # noqa: F401
 from frictiongym.envs.core import ServoCore
+from frictiongym.envs.friction import FRICTION_MODELS
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.vector import ServoVectorEnv
 
@@ -113,14 +118,16 @@ def bare_vector(core: ServoCore) -> tuple[Callable[[], None], np.ndarray]:
     return step, qpos
 
 
-def bench_single(scenario: str, seconds: float) -> tuple[float, float]:
-    env = ServoEnv(scenario)
+def bench_single(scenario: str, seconds: float, overrides: dict | None = None) -> tuple[float, float]:
+    env = ServoEnv(scenario, overrides=overrides)
     env_step = stepper(env)  # resets with seed 0 first
     return paired(env_step, bare_single(env.core)[0], seconds)
 
 
-def bench_vector(scenario: str, num_envs: int, seconds: float) -> tuple[float, float]:
-    venv = ServoVectorEnv(scenario, num_envs)
+def bench_vector(
+    scenario: str, num_envs: int, seconds: float, overrides: dict | None = None
+) -> tuple[float, float]:
+    venv = ServoVectorEnv(scenario, num_envs, overrides=overrides)
     venv.reset(seed=0)
     actions = np.zeros((num_envs, 1), dtype=np.float32)
     return paired(lambda: venv.step(actions), bare_vector(venv.core)[0], seconds, num_envs)
@@ -132,14 +139,21 @@ def main() -> None:
         "--scenarios", nargs="*", default=["kang_regulation", "m220_regulation", "flexible_speed_step"]
     )
     ap.add_argument("--seconds", type=float, default=4.0, help="measuring time per pair of figures")
+    ap.add_argument("--friction-models", nargs="+", default=["lugre"], choices=FRICTION_MODELS)
     args = ap.parse_args()
-    print(f"{'scenario':24s} {'what':10s} {'env steps/s':>12s} {'bare steps/s':>13s} {'ratio':>6s}")
+    print(f"{'scenario':36s} {'what':10s} {'env steps/s':>12s} {'bare steps/s':>13s} {'ratio':>6s}")
     for sc in args.scenarios:
-        e, b = bench_single(sc, args.seconds)
-        print(f"{sc:24s} {'single':10s} {e:12.0f} {b:13.0f} {e / b:6.2f}")
-        for n in (8, 64):
-            e, b = bench_vector(sc, n, args.seconds)
-            print(f"{sc:24s} {f'vector {n}':10s} {e:12.0f} {b:13.0f} {e / b:6.2f}")
+        lugre: dict[str, float] = {}
+        for model in args.friction_models:
+            ov = {"friction_model": model}
+            name = sc if model == "lugre" else f"{sc} [{model}]"
+            rows = [("single", bench_single(sc, args.seconds, ov))]
+            rows += [(f"vector {n}", bench_vector(sc, n, args.seconds, ov)) for n in (8, 64)]
+            for what, (e, b) in rows:
+                vs = f"  {e / lugre[what]:5.2f}x LuGre's env steps/s" if what in lugre else ""
+                print(f"{name:36s} {what:10s} {e:12.0f} {b:13.0f} {e / b:6.2f}{vs}")
+                if model == "lugre":
+                    lugre[what] = e
     try:
         pstep = stepper(gym.make("InvertedPendulum-v5"))
         print(f"{'InvertedPendulum-v5':24s} {'single':10s} {rate(pstep, args.seconds):12.0f}")

@@ -130,3 +130,37 @@ def test_the_bristle_state_turns_over_about_its_presliding_length():
     s = idim.bristle_state(np.concatenate([[-v] * 200, [v] * 200]), length, h)
     k = int(np.argmax(s[200:] >= 0))
     assert (k + 1) * v * h == pytest.approx(length * np.log(2), abs=v * h)
+
+
+def test_the_maxwell_slip_state_is_the_simulators_elements_from_rest():
+    """From rest at constant speed each element is a bristle state 1 - exp(-x/L_k), L_k = r_k·c·L
+    (envs/friction.py's shares and lengths); their sum starts with the slope 1/L of one bristle of length
+    L, the simulator's property that the small-motion stiffness is LuGre's."""
+    from frictiongym.envs.friction import MAXWELL_SLIP_LENGTHS, MAXWELL_SLIP_SHARES
+
+    h, v, length = 1e-3, 1e-4, 1e-4  # 0.001 L per sample
+    x = v * h * np.arange(1, 401)
+    c = sum(a / r for a, r in zip(MAXWELL_SLIP_SHARES, MAXWELL_SLIP_LENGTHS, strict=True))
+    expect = sum(
+        a * (1 - np.exp(-x / (r * c * length)))
+        for a, r in zip(MAXWELL_SLIP_SHARES, MAXWELL_SLIP_LENGTHS, strict=True)
+    )
+    states = idim.States(np.zeros(400), np.full(400, v), np.zeros(400), np.zeros(400), h, "")
+    cols = idim.STRUCTURES["maxwell_slip_asym"].columns(states, length)
+    np.testing.assert_allclose(cols[2], expect, rtol=1e-12)  # the positive-side state column
+    assert expect[0] / x[0] == pytest.approx(1 / length, rel=0.01)
+
+
+def test_kangs_static_excess_acts_only_inside_the_stick_band_and_the_emps_data_do_not_support_it():
+    from frictiongym.envs.friction import KANG_STICK_BAND
+    from frictiongym.envs.plants import plant_spec
+
+    band = KANG_STICK_BAND * plant_spec("emps").drive_friction.vs
+    dq = np.array([0.1 * band, band, 5 * band, -0.1 * band])
+    states = idim.States(np.zeros(4), dq, np.zeros(4), np.zeros(4), 1e-3, "")
+    excess = idim.STRUCTURES["kang_asym"].columns(states, float("nan"))[-2:]
+    assert excess[0][0] > 0.99 and excess[0][2] < 1e-10 and excess[1][3] < -0.99
+    row = next(r for r in idim.emps_table() if r.fit.structure == "kang_asym" and r.delay_samples == 0)
+    for name in ("stick_excess_pos_n", "stick_excess_neg_n"):  # no stiction peak resolved on the drive
+        iv = row.fit.intervals[row.fit.names.index(name)]
+        assert iv.low < 0 < iv.high

@@ -128,18 +128,18 @@ def test_lag_sign_follows_the_bristle_damping():
     """F = g + (u - 1)(g - σ1·v) while z lags the Stribeck drop (u = σ0·z/g): the presets' critically
     damped bristles (σ1·v > g) give lower friction accelerating; a light σ1 gives the survey's lag."""
     spec = phen.rig_spec("lugre")
-    assert phen.lag(spec, 10.0)["width"] < -0.05
+    assert phen.lag("lugre", spec, 10.0)["width"] < -0.05
     p = spec.drive_friction
     vbar = 1.5 * p.vs
     light = phen.rig_spec("lugre", phen.LIGHT_SIGMA1 * float(p.g(vbar)) / vbar)
-    assert phen.lag(light, 10.0)["width"] > 0.01
-    assert abs(phen.lag(phen.rig_spec("dahl"), 10.0)["width"]) < 1e-3  # g constant: no lag
+    assert phen.lag("lugre", light, 10.0)["width"] > 0.01
+    assert abs(phen.lag("dahl", phen.rig_spec("dahl"), 10.0)["width"]) < 1e-3  # g constant: no lag
 
 
 def test_maxwell_slip_breakaway_rises_as_the_force_rate_falls_and_dahls_does_not():
     ms, dahl = phen.rig_spec("maxwell_slip"), phen.rig_spec("dahl")
-    assert phen.breakaway(ms, 0.2) - phen.breakaway(ms, 20.0) > 0.05
-    assert abs(phen.breakaway(dahl, 0.2) - phen.breakaway(dahl, 20.0)) < 0.01
+    assert phen.breakaway("maxwell_slip", ms, 0.2) - phen.breakaway("maxwell_slip", ms, 20.0) > 0.05
+    assert abs(phen.breakaway("dahl", dahl, 0.2) - phen.breakaway("dahl", dahl, 20.0)) < 0.01
 
 
 def test_kangs_model_drops_within_its_stick_band():
@@ -182,3 +182,27 @@ def test_an_episode_pinning_a_structure_runs_on_it_and_designs_on_the_scenarios_
     assert pinned.metrics["iae"] != run_episode(PD(), Episode("kang_regulation", 5, False)).metrics["iae"]
     job = engine.Job("PD", e.scenario, e.seed, e.randomize, engine.params_text(e))
     assert job.episode == e
+
+
+def test_the_coulomb_structures_ground_truth_holds_its_frictionloss_force():
+    """Coulomb + viscous is MuJoCo's frictionloss constraint: its torque (efc_force of the FRICTION_DOF
+    row) is part of the friction the ground truth reports, alike in the single and the vector env (so the
+    Oracle cancels it): -F_c + b while the drive accelerates forward under a constant command (the soft
+    constraint's force saturates at its level), bias alone at rest."""
+    kw = {"randomize": True, "episode_s": 1.0, "overrides": {"friction_model": "coulomb"}}
+    v, s = (
+        ServoVectorEnv("m220_reversal_tracking", 2, nthread=2, **kw),
+        ServoEnv("m220_reversal_tracking", **kw),
+    )
+    v.reset(seed=5)
+    s.reset(seed=5)
+    p = s.core.params[0].friction[0]
+    for k in range(s.scenario.episode_steps - 1):
+        a = np.full((2, 1), 0.3 if k < 100 else -0.3, dtype=np.float32)
+        v.step(a)
+        s.step(a[0])
+        gv, gs = v.ground_truth(), s.ground_truth()
+        assert np.array_equal(gv["nonlinear_friction_torque"][0], gs["nonlinear_friction_torque"])
+        if 40 <= k < 100:  # accelerating forward, far from standstill
+            assert gs["qvel"][0] > 0.1
+            assert gs["nonlinear_friction_torque"][0] == pytest.approx(-p.fc + p.bias, rel=1e-6)

@@ -11,7 +11,8 @@ which the published numbers were computed with, so that they are reproduced to t
 
 Friction structures (`STRUCTURES`) add columns to [q̈ ...]: the published symmetric (eq. 1-2) and
 asymmetric (eq. 12) models, the Stribeck term of LuGre's static map (seed 000 eq. 2), LuGre's presliding
-(bristle state, seed 000 eq. 1) and a position-dependent force along the screw. A structure with a
+(bristle state, seed 000 eq. 1), the simulator's Maxwell-slip presliding (§1.4.7), Kang's stick band (seed
+001 eq. 1-4) and a position-dependent force along the screw. A structure with a
 nonlinear parameter (Stribeck velocity, presliding length) is fitted by profiling the least-squares cost
 over it; its 95 % interval is where N_eff·ln(SSE/SSE_min) <= χ²₁(0.95), and it is resolved by the data
 when that interval is bounded inside the searched range.
@@ -32,6 +33,7 @@ import numpy as np
 from scipy import optimize, signal, stats
 
 from frictiongym.envs.config import ConfigError
+from frictiongym.envs.friction import KANG_STICK_BAND, MAXWELL_SLIP_LENGTHS, MAXWELL_SLIP_SHARES
 
 from .drive_log import DriveLog
 
@@ -175,10 +177,38 @@ POSITION_PARAMS = ("force_P1_n", "force_P2_n", "force_P3_n", "coulomb_P1_n", "co
 ASYM_PARAMS = ("viscous_pos_n_s_per_m", "coulomb_pos_n", "viscous_neg_n_s_per_m", "coulomb_neg_n")
 
 
-def _lugre(s: States, length: float) -> list[np.ndarray]:
-    """eq. (12) with sign(q̇) replaced by the bristle state: Fc± on s > 0 / s < 0 (σ0 = Fc/length)."""
-    b = bristle_state(s.dq, length, s.period)
+def _split(s: States, b: np.ndarray) -> list[np.ndarray]:
+    """eq. (12) with sign(q̇) replaced by a presliding state b in [-1, 1]: Fc± on b > 0 / b < 0."""
     return [s.dq * _pos(s), b * (b > 0), s.dq * _neg(s), b * (b < 0)]
+
+
+def _lugre(s: States, length: float) -> list[np.ndarray]:
+    """eq. (12) with sign(q̇) replaced by the bristle state (σ0 = Fc/length)."""
+    return _split(s, bristle_state(s.dq, length, s.period))
+
+
+def _maxwell_slip(s: States, length: float) -> list[np.ndarray]:
+    """eq. (12) with sign(q̇) replaced by the simulator's Maxwell-slip state (envs/friction.py): the
+    shares α_k of four bristle states with presliding lengths r_k·c·length (c = Σ α_j/r_j)."""
+    c = sum(a / r for a, r in zip(MAXWELL_SLIP_SHARES, MAXWELL_SLIP_LENGTHS, strict=True))
+    b = sum(
+        a * bristle_state(s.dq, r * c * length, s.period)
+        for a, r in zip(MAXWELL_SLIP_SHARES, MAXWELL_SLIP_LENGTHS, strict=True)
+    )
+    return _split(s, b)
+
+
+def _kang(s: States) -> list[np.ndarray]:
+    """Seed 001 eq. 1-4: eq. (12) plus the static levels' excess within the simulator's stick band,
+    KANG_STICK_BAND times the EMPS preset's Stribeck velocity."""
+    return [*_asym(s), *_stribeck(s, KANG_STICK_BAND * _emps_stribeck_velocity())]
+
+
+@cache
+def _emps_stribeck_velocity() -> float:
+    from frictiongym.envs.plants import plant_spec
+
+    return plant_spec("emps").drive_friction.vs
 
 
 STRUCTURES: dict[str, Structure] = {
@@ -214,9 +244,26 @@ STRUCTURES: dict[str, Structure] = {
             "lugre_asym",
             ("mass_kg", *ASYM_PARAMS),
             lambda s, length: [s.ddq, *_lugre(s, length)],
-            "eq. (12) with LuGre's bristle state for sign(v) (seed 000 eq. 1): presliding length Fc/σ0",
+            "eq. (12) with LuGre's bristle state for sign(v) (seed 000 eq. 1, g = Fc: Dahl's state, §1.4.1; "
+            "the Stribeck part is stribeck_asym's): presliding length Fc/σ0",
             "presliding_length_m",
             (1e-7, 1e-3),
+        ),
+        Structure(
+            "maxwell_slip_asym",
+            ("mass_kg", *ASYM_PARAMS),
+            lambda s, length: [s.ddq, *_maxwell_slip(s, length)],
+            "eq. (12) with the simulator's Maxwell-slip presliding (four elements, seed 000 §1.4.7): "
+            "LuGre-equivalent presliding length",
+            "presliding_length_m",
+            (1e-7, 1e-3),
+        ),
+        Structure(
+            "kang_asym",
+            ("mass_kg", *ASYM_PARAMS, "stick_excess_pos_n", "stick_excess_neg_n"),
+            lambda s, _: [s.ddq, *_kang(s)],
+            "seed 001 eq. 1-4 (Kang's stick-slip model): eq. (12) plus the static excess within the "
+            "simulator's stick band",
         ),
         Structure(
             "position_asym",

@@ -28,7 +28,9 @@ from frictiongym.envs.units import deg_to_rad
 
 from . import Section, row, save_figure
 
-STRUCTURES = ("lugre", "dahl", "maxwell_slip", "kang", "coulomb")
+STRUCTURES = ("lugre", "dahl", "maxwell_slip", "kang", "coulomb")  # native: the simulator's plants
+REFERENCE = tuple(validation.REFERENCE_STRUCTURES)  # reference implementations only (never a plant)
+ALL = STRUCTURES + REFERENCE
 LAG_FREQUENCIES_HZ = (1.0, 10.0)
 RAMP_RATES = (0.2, 20.0)  # F_s per second
 PRESLIDING_BOUNDS = (0.1, 10.0)  # a bounded, spring-like displacement, in presliding lengths F_s/σ0
@@ -36,17 +38,31 @@ LIGHT_SIGMA1 = 0.1  # LuGre with σ1 = 0.1·g(v̄)/v̄: the damping term no long
 
 
 def rig_spec(structure: str, sigma1: float | None = None) -> PlantSpec:
-    spec = plant_spec("kang_robot", friction_model=structure)
+    """Kang's rotor with a structure (a reference-only one: the LuGre preset, whose levels it takes)."""
+    spec = plant_spec("kang_robot", friction_model="lugre" if structure in REFERENCE else structure)
     if sigma1 is None:
         return spec
     j = replace(spec.joints[0], friction=replace(spec.joints[0].friction, sigma1=sigma1))
     return replace(spec, joints=(j,))
 
 
-def presliding(spec: PlantSpec) -> dict[str, np.ndarray | float]:
+def _levels(structure: str, spec: PlantSpec) -> tuple[float, float, float]:
+    """(F_c, F_s, b) of the structure: the native elements' sums; the reference ones take the preset's."""
     p = spec.drive_friction
-    fs = joint_levels(spec.friction_model, p)[1]
-    sim = validation.Rig(spec, "rotor").run(lambda t, th: 0.5 * fs * np.sin(np.pi * t), 4.0)
+    return (p.fc, p.fs, p.bias) if structure in REFERENCE else joint_levels(structure, p)
+
+
+def _run(structure: str, spec: PlantSpec, torque: validation.Torque, t_end: float) -> dict[str, np.ndarray]:
+    """The rotor under T(t, θ) from rest: MuJoCo for a native structure, the reference implementation else."""
+    if structure in REFERENCE:
+        return validation.reference_run(structure, spec.drive_friction, rig_inertia(spec), torque, t_end)
+    return validation.Rig(spec, "rotor").run(torque, t_end)
+
+
+def presliding(structure: str, spec: PlantSpec) -> dict[str, np.ndarray | float]:
+    p = spec.drive_friction
+    fs = _levels(structure, spec)[1]
+    sim = _run(structure, spec, lambda t, th: 0.5 * fs * np.sin(np.pi * t), 4.0)
     last = sim["t"] > 2.0
     th, f = sim["theta"][last], -sim["friction"][last]
     pp = float(th.max() - th.min())
@@ -54,17 +70,26 @@ def presliding(spec: PlantSpec) -> dict[str, np.ndarray | float]:
     return {"theta": th, "friction": f, "lengths": pp / (fs / p.sigma0), "area": area}
 
 
-def lag(spec: PlantSpec, f_hz: float) -> dict[str, np.ndarray | float]:
+def lag(structure: str, spec: PlantSpec, f_hz: float) -> dict[str, np.ndarray | float]:
     p = spec.drive_friction
-    fc = joint_levels(spec.friction_model, p)[0]
-    rig = validation.Rig(spec, "rotor", velocity_servo_gain=0.8 * rig_inertia(spec) / spec.timestep)
-    m, d = rig.model, rig.data
-    out = []
-    for _ in range(round((2.0 + 1.0 / f_hz) / spec.timestep)):
-        d.ctrl[1] = p.vs * (1.5 + np.sin(2 * np.pi * f_hz * d.time))
-        mujoco.mj_step(m, d)
-        out.append((d.time, d.qvel[0], -rig.friction(), np.cos(2 * np.pi * f_hz * d.time)))
-    o = np.array(out)
+    fc = _levels(structure, spec)[0]
+    t_end = 2.0 + 1.0 / f_hz
+
+    def velocity(t: float) -> float:
+        return p.vs * (1.5 + np.sin(2 * np.pi * f_hz * t))
+
+    if structure in REFERENCE:
+        r = validation.reference_friction_along(structure, p, velocity, t_end)
+        o = np.column_stack([r["t"], r["v"], -r["friction"], np.cos(2 * np.pi * f_hz * r["t"])])
+    else:
+        rig = validation.Rig(spec, "rotor", velocity_servo_gain=0.8 * rig_inertia(spec) / spec.timestep)
+        m, d = rig.model, rig.data
+        out = []
+        for _ in range(round(t_end / spec.timestep)):
+            d.ctrl[1] = velocity(d.time)
+            mujoco.mj_step(m, d)
+            out.append((d.time, d.qvel[0], -rig.friction(), np.cos(2 * np.pi * f_hz * d.time)))
+        o = np.array(out)
     o = o[o[:, 0] > 2.0]
     up, down = o[o[:, 3] > 0], o[o[:, 3] < 0]
     grid = np.linspace(0.7, 2.3, 30) * p.vs
@@ -77,19 +102,20 @@ def rig_inertia(spec: PlantSpec) -> float:
     return spec.reflected_inertia("rotor")
 
 
-def breakaway(spec: PlantSpec, rate: float) -> float:
+def breakaway(structure: str, spec: PlantSpec, rate: float) -> float:
     """Peak |friction| while |ω| <= v_s under a torque ramp of rate·F_s per s, over F_s - b."""
-    p = spec.drive_friction
-    fs, bias = joint_levels(spec.friction_model, p)[1:]
-    sim = validation.Rig(spec, "rotor").run(lambda t, th: rate * fs * t, 1.5 / rate)
-    stick = np.abs(sim["omega"]) <= p.vs
+    fs, bias = _levels(structure, spec)[1:]
+    sim = _run(structure, spec, lambda t, th: rate * fs * t, 1.5 / rate)
+    stick = np.abs(sim["omega"]) <= spec.drive_friction.vs
     return float(np.max(np.abs(sim["friction"][stick]))) / (fs - bias)
 
 
-def stickslip(spec: PlantSpec) -> dict[str, np.ndarray | float]:
+def stickslip(structure: str, spec: PlantSpec) -> dict[str, np.ndarray | float]:
     kp, pull = spec.document.kp_nm_per_rad, deg_to_rad(1.0)
-    sim = validation.Rig(spec, "rotor").run(lambda t, th: kp * (pull * t - th), 25.0)
-    return {"t": sim["t"], "omega": sim["omega"], "period": validation._period(sim["t"], sim["omega"], pull)}
+    sim = _run(structure, spec, lambda t, th: kp * (pull * t - th), 25.0)
+    every = max(1, len(sim["t"]) // 50_000)  # the figure's points
+    period = validation._period(sim["t"], sim["omega"], pull)
+    return {"t": sim["t"][::every], "omega": sim["omega"][::every], "period": period}
 
 
 @dataclass
@@ -103,16 +129,16 @@ class Measured:
 
 
 def run() -> Measured:
-    specs = {s: rig_spec(s) for s in STRUCTURES}
+    specs = {s: rig_spec(s) for s in ALL}
     p = specs["lugre"].drive_friction
     vbar = 1.5 * p.vs
     light = LIGHT_SIGMA1 * float(p.g(vbar)) / vbar
     return Measured(
-        presliding={s: presliding(specs[s]) for s in STRUCTURES},
-        lag={(s, f): lag(specs[s], f) for s in STRUCTURES for f in LAG_FREQUENCIES_HZ},
-        breakaway={(s, r): breakaway(specs[s], r) for s in STRUCTURES for r in RAMP_RATES},
-        stickslip={s: stickslip(specs[s]) for s in STRUCTURES},
-        light_lag={f: lag(rig_spec("lugre", light), f)["width"] for f in LAG_FREQUENCIES_HZ},
+        presliding={s: presliding(s, specs[s]) for s in ALL},
+        lag={(s, f): lag(s, specs[s], f) for s in ALL for f in LAG_FREQUENCIES_HZ},
+        breakaway={(s, r): breakaway(s, specs[s], r) for s in ALL for r in RAMP_RATES},
+        stickslip={s: stickslip(s, specs[s]) for s in ALL},
+        light_lag={f: lag("lugre", rig_spec("lugre", light), f)["width"] for f in LAG_FREQUENCIES_HZ},
         light_sigma1=light,
     )
 
@@ -131,6 +157,7 @@ def _lag_sign(structure: str) -> float:
 
 def rows(m: Measured) -> Iterator[dict]:
     lo, hi = PRESLIDING_BOUNDS
+    yield from reference_rows(m)
     for s in STRUCTURES:
         x = m.presliding[s]["lengths"]
         bristles = s != "coulomb"
@@ -213,37 +240,75 @@ def rows(m: Measured) -> Iterator[dict]:
         )
 
 
+def reference_rows(m: Measured) -> Iterator[dict]:
+    """The reference-only structures (not in the simulator): what their equations fix. Both are rate
+    independent in sliding (F depends on the path, not the speed: no lag), both hold a bounded presliding
+    displacement (Bliman-Sorine's second-order spatial response, the reset integrator's spring up to z1),
+    and the reset integrator's drop from σ0(1 + a)z1 = F_s to σ0·z1 = F_c gives a stick-slip cycle."""
+    lo, hi = PRESLIDING_BOUNDS
+    for s in REFERENCE:
+        x = m.presliding[s]["lengths"]
+        yield row(
+            f"phenomena.presliding.{s}",
+            float("nan"),
+            x,
+            float("nan"),
+            passed=lo <= x <= hi,
+            note="reference implementation: peak-to-peak displacement at 0.5 F_s in F_s/σ0, bounded",
+        )
+        for f in LAG_FREQUENCIES_HZ:
+            w = m.lag[(s, f)]["width"]
+            yield row(
+                f"phenomena.lag.{s}.{f:g}hz",
+                float("nan"),
+                w,
+                float("nan"),
+                passed=abs(w) < 1e-3,
+                note="reference implementation: (F_up - F_down)/F_c; rate independent in sliding: none",
+            )
+    period = m.stickslip["reset_integrator"]["period"]
+    yield row(
+        "phenomena.stickslip.reset_integrator",
+        float("nan"),
+        period,
+        float("nan"),
+        passed=bool(np.isfinite(period)),
+        note="reference implementation: period (s); the drop from F_s to F_c at z1 gives a cycle",
+    )
+
+
 def figures(m: Measured, out: Path) -> list[str]:
     import matplotlib.pyplot as plt
 
     names = []
     fig, ax = plt.subplots(figsize=(6, 4))
-    for s in STRUCTURES:
+    for s in ALL:
         r = m.presliding[s]
-        ax.plot(r["theta"] * 1e6, r["friction"], label=s)
+        ax.plot(r["theta"] * 1e6, r["friction"], label=s, ls="--" if s in REFERENCE else "-")
     ax.set(xlabel="θ (µrad)", ylabel="friction (N·m)", title="presliding at 0.5 F_s (Kang's rotor)")
     ax.legend()
     names.append(save_figure(fig, out, "phenomena_presliding.png"))
     fig, axes = plt.subplots(1, 2, figsize=(9, 4), sharey=True)
     for ax, f in zip(axes, LAG_FREQUENCIES_HZ, strict=True):
-        for s in STRUCTURES:
+        for s in ALL:
             r = m.lag[(s, f)]
-            ax.plot(r["v"], r["friction"], label=s)
+            ax.plot(r["v"], r["friction"], label=s, ls="--" if s in REFERENCE else "-")
         ax.set(xlabel="v (rad/s)", title=f"frictional lag, {f:g} Hz")
     axes[0].set_ylabel("friction (N·m)")
     axes[0].legend()
     names.append(save_figure(fig, out, "phenomena_lag.png"))
     fig, ax = plt.subplots(figsize=(6, 4))
-    for k, s in enumerate(STRUCTURES):
-        ax.bar(np.arange(len(RAMP_RATES)) + 0.2 * k, [m.breakaway[(s, r)] for r in RAMP_RATES], 0.2, label=s)
-    ax.set_xticks(np.arange(len(RAMP_RATES)) + 0.3, [f"{r:g} F_s/s" for r in RAMP_RATES])
-    ax.set(ylabel="break-away / (F_s - b)", title="break-away against the force rate", ylim=(0.8, 1.25))
+    w = 0.8 / len(ALL)
+    for k, s in enumerate(ALL):
+        ax.bar(np.arange(len(RAMP_RATES)) + w * k, [m.breakaway[(s, r)] for r in RAMP_RATES], w, label=s)
+    ax.set_xticks(np.arange(len(RAMP_RATES)) + 0.4 - w / 2, [f"{r:g} F_s/s" for r in RAMP_RATES])
+    ax.set(ylabel="break-away / (F_s - b)", title="break-away against the force rate", ylim=(0.6, 1.5))
     ax.legend()
     names.append(save_figure(fig, out, "phenomena_breakaway.png"))
     fig, ax = plt.subplots(figsize=(7, 4))
-    for s in STRUCTURES:
+    for s in ALL:
         r = m.stickslip[s]
-        ax.plot(r["t"], np.degrees(r["omega"]), label=s, lw=0.8)
+        ax.plot(r["t"], np.degrees(r["omega"]), label=s, lw=0.8, ls="--" if s in REFERENCE else "-")
     ax.set(xlabel="t (s)", ylabel="ω (deg/s)", title="stick-slip, pulled through K_p at 1 deg/s")
     ax.legend()
     names.append(save_figure(fig, out, "phenomena_stickslip.png"))
@@ -271,7 +336,12 @@ def findings(m: Measured, rows_: list[dict]) -> str:
         "| stick-slip |",
         "|---|---|---|---|---|",
     ]
-    lines += [f"| {s} | " + " | ".join(mark(s, ph) for ph in phens) + " |" for s in STRUCTURES]
+    lines += [
+        f"| {s}{' (reference only)' if s in REFERENCE else ''} | "
+        + " | ".join(mark(s, ph) for ph in phens)
+        + " |"
+        for s in ALL
+    ]
     lines += [
         "",
         "The survey (§1.5) credits LuGre with frictional lag and varying break-away. With the presets' "
