@@ -206,3 +206,19 @@ def test_the_coulomb_structures_ground_truth_holds_its_frictionloss_force():
         if 40 <= k < 100:  # accelerating forward, far from standstill
             assert gs["qvel"][0] > 0.1
             assert gs["nonlinear_friction_torque"][0] == pytest.approx(-p.fc + p.bias, rel=1e-6)
+
+
+def test_the_reference_only_structures_follow_their_equations():
+    """Seed 000 §1.4.3: the reset integrator holds up to σ0(1 + a)z1 = F_s, then slides; §1.4.5:
+    Bliman-Sorine's friction while sliding one way is F_c + σ2·v whatever the speed's history (its
+    steady state is Coulomb's; rate independent)."""
+    spec = phen.rig_spec("reset_integrator")
+    p = spec.drive_friction
+    assert phen.breakaway("reset_integrator", spec, 2.0) == pytest.approx(1.0, abs=0.02)
+    r = validation.reference_friction_along(
+        "bliman_sorine", p, lambda t: p.vs * (1.5 + np.sin(2 * np.pi * 10 * t)), 0.3, h=1e-4
+    )
+    settled = slice(1000, None)  # after 0.1 s, many presliding lengths of travel
+    np.testing.assert_allclose(
+        r["friction"][settled], -(p.fc + p.sigma2 * r["v"][settled]) + p.bias, rtol=1e-6, atol=1e-9
+    )
