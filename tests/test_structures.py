@@ -49,7 +49,10 @@ def test_dahl_is_lugre_without_the_stribeck_drop():
 
 
 @pytest.mark.parametrize("structure", ["dahl", "maxwell_slip", "kang"])
-@pytest.mark.parametrize(("plant", "joint"), [("kang_robot", "rotor"), ("m220", "drive")])
+@pytest.mark.parametrize(
+    ("plant", "joint"),
+    [("kang_robot", "rotor"), pytest.param("m220", "drive", marks=pytest.mark.slow)],  # all: the report
+)
 def test_native_elements_match_radau(structure, plant, joint):
     spec = plant_spec(plant, friction_model=structure)
     for d in (1, -1):
