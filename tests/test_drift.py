@@ -1,15 +1,13 @@
 """Friction that drifts within an episode: levels scaled by λ(t) drawn per episode, applied alike in the
 single env, the vector env (the batched backend) and a pickled copy, with the ground truth of the levels."""
 
-import pickle
-
 import numpy as np
 import pytest
+from conftest import lockstep
 
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.servo_env import ServoEnv
-from frictiongym.envs.vector import ServoVectorEnv
 
 KW = {"randomize": True, "episode_s": 2.0}
 DRIFT = {"friction_drift": {"drift": [-0.5, 0.5], "step": [-0.5, -0.4], "step_at_s": [0.5, 1.5]}}
@@ -37,29 +35,8 @@ def test_the_levels_follow_the_drawn_drift_and_the_friction_follows_them():
 
 
 def test_drift_is_bit_identical_in_the_single_env_the_vector_env_and_a_copy():
-    v = ServoVectorEnv("m220_reversal_tracking", 2, nthread=2, overrides=DRIFT, **KW)
-    singles = [ServoEnv("m220_reversal_tracking", overrides=DRIFT, **KW) for _ in range(2)]
-    o, _ = v.reset(seed=20)
-    for i, s in enumerate(singles):
-        assert np.array_equal(s.reset(seed=20 + i)[0], o[i])
-    rng = np.random.default_rng(0)
-    twin, after = None, []
-    for step in range(v.scenario.episode_steps - 1):
-        a = rng.uniform(-1, 1, (2, 1)).astype(np.float32)
-        o, r, *_ = v.step(a)
-        truth = v.ground_truth()
-        for i, s in enumerate(singles):
-            oi, ri, *_ = s.step(a[i])
-            assert np.array_equal(o[i], oi) and r[i] == ri
-            gt = s.ground_truth()
-            for key in ("qpos", "friction_torque", "coulomb_level", "friction_scale"):
-                assert np.array_equal(truth[key][i], gt[key]), key
-        if twin is not None:
-            after.append((a[0], o[0]))
-        if step == 100:  # a copy taken mid-episode
-            twin = pickle.loads(pickle.dumps(singles[0]))
-    for a, o0 in after:  # continues on the same drift, bit for bit
-        assert np.array_equal(twin.step(a)[0], o0)
+    keys = ("qpos", "friction_torque", "coulomb_level", "friction_scale")
+    lockstep("m220_reversal_tracking", {"overrides": DRIFT, **KW}, keys, copy_at=100)  # on the same drift
 
 
 def test_drift_needs_lugre_and_bounded_fractions():

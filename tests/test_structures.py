@@ -3,10 +3,9 @@ elements, their MuJoCo elements against Radau, the per-joint sums every consumer
 privileged observation, drift) bit-identical across the single env, the vector env and a copy, and the
 phenomena of §1.3 that follow from their equations."""
 
-import pickle
-
 import numpy as np
 import pytest
+from conftest import lockstep
 
 from frictiongym.agents.classical import Southward
 from frictiongym.agents.evaluate import run_episode
@@ -68,31 +67,9 @@ def test_maxwell_slip_env_with_drift_is_bit_identical_single_vector_and_copy():
     """The flexible servo has two frictional joints, so each joint's three further elements are summed
     into the right joint; drift scales all eight elements."""
     kw = {"randomize": True, "episode_s": 2.0, "overrides": {**DRIFT, "friction_model": "maxwell_slip"}}
-    v = ServoVectorEnv("flexible_speed_reversal", 2, nthread=2, **kw)
-    singles = [ServoEnv("flexible_speed_reversal", **kw) for _ in range(2)]
-    o, _ = v.reset(seed=20)
-    for i, s in enumerate(singles):
-        assert np.array_equal(s.reset(seed=20 + i)[0], o[i])
-    core = singles[0].core
+    keys = ("qpos", "friction_torque", "nonlinear_friction_torque", "bristle", "static_level")
+    core = lockstep("flexible_speed_reversal", kw, keys, copy_at=30)[0].core
     assert len(core.elem_act) == 8 and len(core.fric_act) == 2
-    rng = np.random.default_rng(0)
-    twin, after = None, []
-    for step in range(v.scenario.episode_steps - 1):
-        a = rng.uniform(-1, 1, (2, 1)).astype(np.float32)
-        o, r, *_ = v.step(a)
-        truth = v.ground_truth()
-        for i, s in enumerate(singles):
-            oi, ri, *_ = s.step(a[i])
-            assert np.array_equal(o[i], oi) and r[i] == ri
-            gt = s.ground_truth()
-            for key in ("qpos", "friction_torque", "nonlinear_friction_torque", "bristle", "static_level"):
-                assert np.array_equal(truth[key][i], gt[key]), key
-        if twin is not None:
-            after.append((a[0], o[0]))
-        if step == 30:
-            twin = pickle.loads(pickle.dumps(singles[0]))
-    for a, o0 in after:
-        assert np.array_equal(twin.step(a)[0], o0)
     # the friction torque is every element's force on its joint, less the first element's σ2·v
     b, m = core.backend, core.model
     for j, dof in enumerate(core.fric_dofs):
