@@ -147,8 +147,9 @@ def _lag_sign(structure: str) -> float:
     """The sign of the lag the equations predict at v̄ = 1.5·v_s: F = g + (u - 1)·(g - σ1·v) with
     u = σ0·z/g > 1 while accelerating through the Stribeck drop, so the friction is higher accelerating
     only where σ1·v̄ < g(v̄); none where g is constant (Dahl; Kang's model, whose drop lies within its
-    stick band, far below v̄) or there is no state (Coulomb)."""
-    if structure in ("dahl", "kang", "coulomb"):
+    stick band, far below v̄), there is no state (Coulomb) or the law is rate independent in sliding (the
+    reference-only Bliman-Sorine and reset integrator: F depends on the path, not the speed)."""
+    if structure in ("dahl", "kang", "coulomb", *REFERENCE):
         return 0.0
     p = rig_spec(structure).drive_friction
     vbar = 1.5 * p.vs
@@ -157,28 +158,24 @@ def _lag_sign(structure: str) -> float:
 
 def rows(m: Measured) -> Iterator[dict]:
     lo, hi = PRESLIDING_BOUNDS
-    yield from reference_rows(m)
-    for s in STRUCTURES:
+    for s in ALL:
         x = m.presliding[s]["lengths"]
-        bristles = s != "coulomb"
+        bristles = s != "coulomb"  # the reference-only structures too: a spring up to their slip
+        how = (
+            "the spring of the bristles (the reference model's state), bounded in [0.1, 10]"
+            if bristles
+            else "MuJoCo's soft frictionloss constraint creeps, > 10 (no presliding spring, unbounded)"
+        )
         yield row(
             f"phenomena.presliding.{s}",
             float("nan"),
             x,
             float("nan"),
             passed=(lo <= x <= hi) if bristles else x > hi,
-            note=(
-                f"peak-to-peak displacement at 0.5 F_s, in F_s/σ0 "
-                f"(loop area {m.presliding[s]['area']:.2f} of "
-                + (
-                    "its box): the bristles' spring, bounded in [0.1, 10]"
-                    if bristles
-                    else "its box): "
-                    "MuJoCo's soft frictionloss constraint creeps, > 10 (no presliding spring, unbounded)"
-                )
-            ),
+            note=f"peak-to-peak displacement at 0.5 F_s, in F_s/σ0 (loop area {m.presliding[s]['area']:.2f} "
+            f"of its box): {how}",
         )
-    for s in STRUCTURES:
+    for s in ALL:
         sign = _lag_sign(s)
         for f in LAG_FREQUENCIES_HZ:
             w = m.lag[(s, f)]["width"]
@@ -226,9 +223,9 @@ def rows(m: Measured) -> Iterator[dict]:
             passed=bool(ok),
             note=f"break-away at 0.2 minus at 20 F_s/s, over F_s - b ({slow:.3f} vs {fast:.3f}): {why}",
         )
-    for s in STRUCTURES:
+    for s in (*STRUCTURES, "reset_integrator"):  # Bliman-Sorine's stiction is a transient in space
         period = m.stickslip[s]["period"]
-        drop = s in ("lugre", "maxwell_slip", "kang")  # a static level above the Coulomb level
+        drop = s in ("lugre", "maxwell_slip", "kang", "reset_integrator")  # static level above Coulomb
         yield row(
             f"phenomena.stickslip.{s}",
             float("nan"),
@@ -238,43 +235,6 @@ def rows(m: Measured) -> Iterator[dict]:
             note="period (s) of the spring-pulled cycle; "
             + ("F_s > F_c: a cycle" if drop else "F_s = F_c: none (nan)"),
         )
-
-
-def reference_rows(m: Measured) -> Iterator[dict]:
-    """The reference-only structures (not in the simulator): what their equations fix. Both are rate
-    independent in sliding (F depends on the path, not the speed: no lag), both hold a bounded presliding
-    displacement (Bliman-Sorine's second-order spatial response, the reset integrator's spring up to z1),
-    and the reset integrator's drop from σ0(1 + a)z1 = F_s to σ0·z1 = F_c gives a stick-slip cycle."""
-    lo, hi = PRESLIDING_BOUNDS
-    for s in REFERENCE:
-        x = m.presliding[s]["lengths"]
-        yield row(
-            f"phenomena.presliding.{s}",
-            float("nan"),
-            x,
-            float("nan"),
-            passed=lo <= x <= hi,
-            note="reference implementation: peak-to-peak displacement at 0.5 F_s in F_s/σ0, bounded",
-        )
-        for f in LAG_FREQUENCIES_HZ:
-            w = m.lag[(s, f)]["width"]
-            yield row(
-                f"phenomena.lag.{s}.{f:g}hz",
-                float("nan"),
-                w,
-                float("nan"),
-                passed=abs(w) < 1e-3,
-                note="reference implementation: (F_up - F_down)/F_c; rate independent in sliding: none",
-            )
-    period = m.stickslip["reset_integrator"]["period"]
-    yield row(
-        "phenomena.stickslip.reset_integrator",
-        float("nan"),
-        period,
-        float("nan"),
-        passed=bool(np.isfinite(period)),
-        note="reference implementation: period (s); the drop from F_s to F_c at z1 gives a cycle",
-    )
 
 
 def figures(m: Measured, out: Path) -> list[str]:
