@@ -554,11 +554,12 @@ class ServoCore:
     # ------------------------------------------------------------------ ground truth and metrics
     def ground_truth(self, i: int | slice) -> dict:
         """True states of simulation i (or one row per simulation of a slice): joint angles (rad) and
-        velocities (rad/s), bristle deflections (rad), friction torques (N·m), and their nonlinear part
-        (N·m: -(σ0·z + σ1·ż) + b, friction_torque without the viscous -σ2·v; what the friction-free twin
-        removes), one per frictional joint; and the friction levels over the period that starts now
-        (coulomb_level, static_level, N·m per frictional joint, and friction_scale, the drift's λ: 1
-        without drift)."""
+        velocities (rad/s), bristle deflections (rad, one per LuGre element of the friction structure),
+        friction torques (N·m), and their nonlinear part (N·m: -Σ(σ0·z + σ1·ż) + b over the joint's
+        elements, or the frictionloss constraint's torque + b for coulomb; friction_torque without the
+        viscous -σ2·v; what the friction-free twin removes), one per frictional joint; and the friction
+        levels over the period that starts now (coulomb_level, static_level, N·m per frictional joint, and
+        friction_scale, the drift's λ: 1 without drift)."""
         lam, levels = self.current_levels(i)
         now = {"coulomb_level": levels[..., 0], "static_level": levels[..., 1], "friction_scale": lam}
         if self._fast:  # the same values from the MjData, with plain indices

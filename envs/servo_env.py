@@ -219,10 +219,12 @@ class ServoEnv(JsonSafeSpec, gym.Env, EzPickle):
         self._started, self._closed = False, True
 
     def ground_truth(self) -> dict[str, np.ndarray]:
-        """True states now: joint angles (qpos, rad) and velocities (qvel, rad/s), LuGre bristle deflections
-        (bristle, rad), friction torques on the frictional joints (friction_torque, N·m) and their
-        nonlinear part (nonlinear_friction_torque, N·m, without the viscous term). In info after every step
-        and reset with ground_truth_in_info=True."""
+        """True states now: joint angles (qpos, rad) and velocities (qvel, rad/s), bristle deflections of
+        the friction structure's LuGre elements (bristle, rad: one per frictional joint for lugre, dahl and
+        kang, four per joint for maxwell_slip, none for coulomb), friction torques on the frictional joints
+        (friction_torque, N·m: every element, or the frictionloss constraint) and their nonlinear part
+        (nonlinear_friction_torque, N·m, without the viscous term). In info after every step and reset with
+        ground_truth_in_info=True."""
         return self.core.ground_truth(0)
 
     # --------------------------------------------------------------- helpers for classical controllers

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import ClassVar
 
 import mujoco
 import numpy as np
@@ -234,6 +235,7 @@ class BlimanSorine:
     fc: float
     omega: float
     xi: float
+    initial: ClassVar[tuple[float, ...]] = (0.0, 0.0)  # (F, dF/dx) at rest
 
     @classmethod
     def of(cls, p: LuGreParams) -> BlimanSorine:
@@ -268,6 +270,7 @@ class ResetIntegrator:
     sigma1: float
     z1: float
     a: float
+    initial: ClassVar[tuple[float, ...]] = (0.0,)  # z at rest
 
     @classmethod
     def of(cls, p: LuGreParams) -> ResetIntegrator:
@@ -299,7 +302,7 @@ def reference_run(
     as the native structures have them); logs t, θ, ω, friction torque on the joint, as Rig.run."""
     model = REFERENCE_STRUCTURES[structure].of(p)
     n = round(t_end / h)
-    x = (0.0, 0.0) if structure == "bliman_sorine" else (0.0,)
+    x = model.initial
     th = v = 0.0
     log = np.empty((n, 4))
     for k in range(n):
@@ -324,7 +327,7 @@ def reference_friction_along(
     velocity servo imposes it on the rig): t, v, friction."""
     model = REFERENCE_STRUCTURES[structure].of(p)
     n = round(t_end / h)
-    x = (0.0, 0.0) if structure == "bliman_sorine" else (0.0,)
+    x = model.initial
     log = np.empty((n, 3))
     for k in range(n):
         t = k * h
