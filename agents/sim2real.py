@@ -34,6 +34,8 @@ from frictiongym.envs.suites import Episode
 from . import engine, registry, stats
 
 SEEDS = 700_000  # sim-to-real episode seeds start here (disjoint from every suite and from training)
+SET_SPAN = 10_000  # seeds per set: one-axis and structure episodes, each joint set, the model-error plants
+SEED_RANGE = (SEEDS, SEEDS + 3 * SET_SPAN)  # every seed the study uses (configs/suites.yaml's table)
 
 
 @dataclass(frozen=True)
@@ -87,6 +89,8 @@ def plan(
 ) -> tuple[list[Episode], dict[str, int]]:
     """The study's episodes (nominal plant + pins; randomize off so only the pinned values move) and the
     number of rejected joint draws per set."""
+    if max(seeds, joint) > SET_SPAN:
+        raise ValueError(f"--seeds, --joint at most {SET_SPAN} (the study's seed sets: configs/suites.yaml)")
     sc = load_scenario(scenario)
     h, ranges = sc.control_period, sc.spec.randomization
     episodes: list[Episode] = []
@@ -114,7 +118,7 @@ def plan(
             if not _admissible(scenario, values):
                 bad += 1
                 continue
-            episodes.append(Episode(scenario, SEEDS + 10_000 * (k + 1) + n, False, _pinned(values)))
+            episodes.append(Episode(scenario, SEEDS + SET_SPAN * (k + 1) + n, False, _pinned(values)))
             n += 1
         rejected[name] = bad
     return episodes, rejected
@@ -351,7 +355,7 @@ def plot_structures(table: list[dict[str, Any]], scenario: str, path: Path) -> N
 
 
 # ------------------------------------------------------------------------------------------- model error
-MODEL_ERROR_SEEDS = 710_000  # "true" plants of the closing-the-loop study (a randomised draw each)
+MODEL_ERROR_SEEDS = SEEDS + SET_SPAN  # "true" plants of the closing-the-loop study (a randomised draw each)
 DESIGNS = ("nominal", "identified", "true")
 
 
@@ -371,6 +375,8 @@ def model_error(
 
     from .evaluate import EnvCache, run_episode
 
+    if draws > SET_SPAN:
+        raise ValueError(f"--model-error at most {SET_SPAN} (the study's seed sets, configs/suites.yaml)")
     envs = EnvCache()
     rows = []
     for i in tqdm(range(draws), desc="model error", unit="plant", disable=not progress):

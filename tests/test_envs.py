@@ -235,6 +235,28 @@ def test_suites_are_defined_and_test_seeds_are_held_out():
     assert out == str(here)
 
 
+def test_every_seed_range_is_disjoint():
+    """configs/suites.yaml's table: the suites, the sim-to-real study and training never share a seed,
+    so no number a study reports comes from an episode another one selected or trained on."""
+    from frictiongym.agents import sim2real, training
+
+    ranges = {name: {e.seed for e in load_suite(name)} for name in suite_names()}
+    lo, hi = sim2real.SEED_RANGE
+    for name, seeds in ranges.items():
+        assert not any(lo <= s < hi for s in seeds), name
+        assert max(seeds) < training.TRAINING_SEEDS, name
+        for other, theirs in ranges.items():
+            assert other == name or seeds.isdisjoint(theirs), (name, other)
+    episodes, _ = sim2real.plan("kang_regulation", 2, 2, 2)
+    assert all(lo <= e.seed < hi for e in episodes)
+    # the largest seeds the study's limits allow: shifts, the last joint set, the model-error plants
+    span = sim2real.SET_SPAN
+    assert sim2real.SEEDS + span <= sim2real.MODEL_ERROR_SEEDS  # after the shifts' and structures' seeds
+    assert sim2real.SEEDS + 2 * span + span - 1 < hi < training.TRAINING_SEEDS
+    with pytest.raises(ValueError, match="seed sets"):
+        sim2real.plan("kang_regulation", span + 1, 2, 0)
+
+
 def test_rgb_render_headless_and_episode_plot(tmp_path):
     code = (
         "import gymnasium as gym, frictiongym.envs, numpy as np;"
