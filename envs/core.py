@@ -357,11 +357,11 @@ class ServoCore:
             self.sigma2[i] = [f.sigma2 for f in p.friction]  # coulomb: in the joint's damping
             self.delay_steps[i], self.jitter_steps[i] = p.delay_steps(spec), p.jitter_steps(spec)
             self.levels[i] = [joint_levels(model, f) for f in p.friction] or np.zeros((0, 3))
-            per_joint = [element_levels(model, f) for f in p.friction]
-            sig0 = [[e.sigma0 for e in elements(model, f)] for f in p.friction]
+            els = [elements(model, f) for f in p.friction]
             order = self._element_order
+            per_joint = [element_levels(e, f.bias) for e, f in zip(els, p.friction, strict=True)]
             self.elem_levels[i] = [per_joint[j][k] for j, k in order] or np.zeros((0, 3))
-            self.elem_sigma0[i] = [sig0[j][k] for j, k in order]
+            self.elem_sigma0[i] = [els[j][k].sigma0 for j, k in order]
         if self.drift is not None:  # each episode's own drift, from its seed
             period_starts = self.t[:-1]
             for i, seed in zip(ids, seeds, strict=True):
@@ -599,14 +599,13 @@ class ServoCore:
     def per_joint(self, x: np.ndarray, primary: bool = True) -> np.ndarray:
         """Per frictional joint, the sum over its LuGre elements: of actuator forces x (..., nu) (primary:
         the first element's force carries the bias) or of per-element values x (..., n_elements)."""
-        nf = len(self.fric_act)
         if primary:
-            out, extras = x[..., self.fric_act], self._extras
-        else:
-            if x.shape[-1] == 0:
-                return np.zeros((*x.shape[:-1], nf))
-            out = x[..., :nf]
-            extras = [(nf + e, j) for e, (_, j) in enumerate(self._extras)]
+            return self.idx.joint_forces(x)
+        nf = len(self.fric_act)
+        if x.shape[-1] == 0:
+            return np.zeros((*x.shape[:-1], nf))
+        out = x[..., :nf]
+        extras = [(nf + e, j) for e, (_, j) in enumerate(self._extras)]
         if extras:
             out = out.copy()
             for a, j in extras:

@@ -29,6 +29,9 @@ native elements carry it on the joint:
                   non-local memory, §1.4.7): element i has a share α_i of the levels and a presliding length
                   r_i·c times LuGre's F_s/σ0; its stiffness and damping are shares of σ0 and σ1 summing to
                   them, so the small-motion stiffness, the damping and the static curve are LuGre's.
+    kang          Kang's stick-slip model (seed 001 eq. 1-4, Karnopp's stick band): one LuGre element whose
+                  Stribeck velocity is KANG_STICK_BAND times the preset's, so the static level holds within
+                  the band and the Coulomb level outside it.
     coulomb       Coulomb + viscous (§1.2.1-1.2.2) by MuJoCo's frictionloss constraint (sticks at rest).
     viscous, none the nonlinear part removed.
 """
@@ -54,6 +57,11 @@ KANG_STICK_BAND = 0.01
 # presliding lengths, so that the friction force builds up over a decade of displacement.
 MAXWELL_SLIP_SHARES = (0.25, 0.25, 0.25, 0.25)
 MAXWELL_SLIP_LENGTHS = (1.0 / 3.0, 1.0, 3.0, 9.0)
+
+
+def stribeck(fc: float, fs: float, vs: float, v: float | np.ndarray) -> float | np.ndarray:
+    """g(v) = Fc + (Fs - Fc)·exp(-(v/vs)²) (N·m), seed 000 eq. (2): levels in N·m, velocities in rad/s."""
+    return fc + (fs - fc) * np.exp(-((v / vs) ** 2))
 
 
 @dataclass(frozen=True)
@@ -101,8 +109,8 @@ class LuGreParams:
         }
 
     def g(self, v: float | np.ndarray) -> float | np.ndarray:
-        """Stribeck curve g(v) = Fc + (Fs - Fc)·exp(-(v/vs)²) (N·m), seed 000 eq. (2)."""
-        return self.fc + (self.fs - self.fc) * np.exp(-((v / self.vs) ** 2))
+        """Stribeck curve g(v) (N·m), seed 000 eq. (2)."""
+        return stribeck(self.fc, self.fs, self.vs, v)
 
     def steady_state(self, v: float) -> float:
         """Steady sliding friction torque on the joint at velocity v (rad/s), v != 0 (N·m)."""
@@ -171,6 +179,10 @@ class Element:
     fs: float
     vs: float
 
+    def g(self, v: float | np.ndarray) -> float | np.ndarray:
+        """The element's Stribeck curve (N·m)."""
+        return stribeck(self.fc, self.fs, self.vs, v)
+
 
 def elements(model: str, p: LuGreParams) -> tuple[Element, ...]:
     """The native elements that carry friction p on its joint under structure `model` (module docstring);
@@ -190,10 +202,10 @@ def elements(model: str, p: LuGreParams) -> tuple[Element, ...]:
     return ()
 
 
-def element_levels(model: str, p: LuGreParams) -> list[tuple[float, float, float]]:
-    """(fc, fs, bias) of each native element of p under `model` (N·m): what drift scales. The bias
+def element_levels(els: tuple[Element, ...], bias: float) -> list[tuple[float, float, float]]:
+    """(fc, fs, bias) of each of a joint's native elements (N·m): what drift scales. The joint's bias
     rides on the first element."""
-    return [(e.fc, e.fs, p.bias if k == 0 else 0.0) for k, e in enumerate(elements(model, p))]
+    return [(e.fc, e.fs, bias if k == 0 else 0.0) for k, e in enumerate(els)]
 
 
 def joint_levels(model: str, p: LuGreParams) -> tuple[float, float, float]:
@@ -201,7 +213,7 @@ def joint_levels(model: str, p: LuGreParams) -> tuple[float, float, float]:
     (Dahl: static = Coulomb); Coulomb + viscous sticks and slides at fc."""
     if model == "coulomb":
         return p.fc, p.fc, p.bias
-    levels = element_levels(model, p)
+    levels = element_levels(elements(model, p), p.bias)
     fc, fs = levels[0][0], levels[0][1]
     for e in levels[1:]:
         fc, fs = fc + e[0], fs + e[1]

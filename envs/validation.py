@@ -19,16 +19,12 @@ import mujoco
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .friction import Element, LuGreParams, elements
+from .friction import LuGreParams, elements
 from .plants import PlantSpec
 from .plants.mjcf import to_mjcf
+from .plants.params import ModelIndex
 
 Torque = Callable[[float, float], float]  # T(t, θ) in N·m
-
-
-def _g(e: Element, v: float | np.ndarray) -> float | np.ndarray:
-    """An element's Stribeck curve g_k(v) (N·m), seed 000 eq. (2)."""
-    return e.fc + (e.fs - e.fc) * np.exp(-((v / e.vs) ** 2))
 
 
 def lugre_ode(
@@ -46,7 +42,7 @@ def lugre_ode(
 
     def f(t: float, y: np.ndarray) -> list[float]:
         th, v, z = y[0], y[1], y[2:]
-        zd = [v - e.sigma0 * abs(v) * zk / _g(e, v) for e, zk in zip(els, z, strict=True)]
+        zd = [v - e.sigma0 * abs(v) * zk / e.g(v) for e, zk in zip(els, z, strict=True)]
         friction = sum(e.sigma0 * zk + e.sigma1 * d for e, zk, d in zip(els, z, zd, strict=True))
         return [v, (torque(t, th) - friction - p.sigma2 * v + p.bias) / J, *zd]
 
@@ -66,13 +62,13 @@ def ode_friction(p: LuGreParams, y: np.ndarray, model: str = "lugre") -> np.ndar
     """Friction torque on the joint (N·m) along an ODE solution y = (θ, ω, z_1..z_N)."""
     v, out = y[1], -p.sigma2 * y[1] + p.bias
     for e, z in zip(elements(model, p), y[2:], strict=True):
-        out = out - (e.sigma0 * z + e.sigma1 * (v - e.sigma0 * np.abs(v) * z / _g(e, v)))
+        out = out - (e.sigma0 * z + e.sigma1 * (v - e.sigma0 * np.abs(v) * z / e.g(v)))
     return out
 
 
 def steady_state(p: LuGreParams, v: float, model: str = "lugre") -> float:
     """Steady sliding friction torque on the joint at velocity v != 0 (N·m): -(Σ g_k(v)·sgn v + σ2·v) + b."""
-    g = sum(float(_g(e, v)) for e in elements(model, p))
+    g = sum(float(e.g(v)) for e in elements(model, p))
     return -(np.copysign(g, v) + p.sigma2 * v) + p.bias
 
 
@@ -109,20 +105,14 @@ class Rig:
         self.data = mujoco.MjData(self.model)
         self.h = spec.timestep
         self.structure = spec.friction_model
-        names = [
-            mujoco.mj_id2name(self.model, mujoco.mjtObj.mjOBJ_ACTUATOR, a)
-            for a in range(self.model.nactuator)
-        ]
-        self.elements = [a for a, n in enumerate(names) if n.startswith("friction_")]
+        self.idx = ModelIndex.of(self.model, rig)
 
     def friction(self) -> float:
         """Friction torque on the joint now (N·m), incl. σ2 damping (on the first element, or on the joint
         for the Coulomb structure) and the frictionloss constraint's force (the rig's only constraint)."""
         d, m = self.data, self.model
-        f = d.actuator_force[self.elements[0]]
-        for a in self.elements[1:]:
-            f += d.actuator_force[a]
-        damping = m.actuator_damping[self.elements[0]] + m.dof_damping[0]  # σ2 (Coulomb: on the joint)
+        f = self.idx.joint_forces(d.actuator_force)[0]
+        damping = m.actuator_damping[self.idx.friction[0]] + m.dof_damping[0]  # σ2 (Coulomb: on the joint)
         return float(f - damping * d.qvel[0] + d.qfrc_constraint[0])
 
     def run(self, torque: Torque, t_end: float) -> dict[str, np.ndarray]:

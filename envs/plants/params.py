@@ -206,7 +206,7 @@ class ModelIndex:
             drive=drive,
             drive_ctrl=int(model.actuator_ctrladr[drive]),
             friction=first,
-            elements=tuple((a, i, 0) for i, a in enumerate(first))[: len(first) if n else 0]
+            elements=(tuple((a, i, 0) for i, a in enumerate(first)) if n else ())
             + tuple((aid(f"friction_{j}_{k}"), i, k) for k in range(1, n) for i, j in enumerate(names)),
             rate=aid("rate_feedback"),
             disturbance_ctrl=int(model.actuator_ctrladr[aid("disturbance")])
@@ -221,6 +221,17 @@ class ModelIndex:
                 for s in spec.springs
             ),
         )
+
+    def joint_forces(self, force: np.ndarray) -> np.ndarray:
+        """Per frictional joint, the sum of its friction actuators' forces from actuator forces (..., nu):
+        the first element's (which carries the bias), then the structure's further elements in order."""
+        out = force[..., list(self.friction)]
+        extras = [(a, i) for a, i, k in self.elements if k > 0]
+        if extras:
+            out = out.copy()
+            for a, i in extras:
+                out[..., i] += force[..., a]
+        return out
 
 
 def _fields(spec: PlantSpec, idx: ModelIndex, p: EpisodeParams) -> dict[str, list[tuple[tuple, float]]]:

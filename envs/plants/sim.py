@@ -107,14 +107,11 @@ class PlantSim:
         """Current friction torque on each frictional joint (N·m): its friction elements (the first with the
         bias) + the first's σ2 damping."""
         d, m = self.data, self.model
+        f = self.idx.joint_forces(d.actuator_force)
         out = []
         for i, a in enumerate(self.idx.friction):
             dof = int(m.jnt_dofadr[m.actuator_trnid[a, 0]])
-            f = d.actuator_force[a]
-            for e, j, k in self.idx.elements:
-                if j == i and k > 0:
-                    f += d.actuator_force[e]
-            out.append(joint_friction_torque(f, m.actuator_damping[a], d.qvel[dof]))
+            out.append(joint_friction_torque(f[i], m.actuator_damping[a], d.qvel[dof]))
         return np.array(out)
 
     def bristle_state(self) -> np.ndarray:
