@@ -9,6 +9,7 @@ from typing import Any
 
 import gymnasium as gym
 import torch
+from sb3_contrib.crossq.policies import CrossQPolicy
 from sb3_contrib.tqc.policies import TQCPolicy
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
 from stable_baselines3.sac.policies import SACPolicy
@@ -52,11 +53,20 @@ class AsymmetricTQCPolicy(_AsymmetricActor, TQCPolicy):
     """TQC policy whose actor sees only actor_indices."""
 
 
-POLICIES = {"SAC": AsymmetricSACPolicy, "TD3": AsymmetricTD3Policy, "TQC": AsymmetricTQCPolicy}
+class AsymmetricCrossQPolicy(_AsymmetricActor, CrossQPolicy):
+    """CrossQ policy whose actor sees only actor_indices."""
+
+
+POLICIES = {
+    "SAC": AsymmetricSACPolicy,
+    "TD3": AsymmetricTD3Policy,
+    "TQC": AsymmetricTQCPolicy,
+    "CrossQ": AsymmetricCrossQPolicy,
+}
 
 
 def asymmetric_policy(algorithm: str) -> type:
-    """The asymmetric policy class for SAC, TD3 or TQC."""
+    """The asymmetric policy class for SAC, TD3, TQC or CrossQ."""
     if algorithm not in POLICIES:
         raise ValueError(f"no asymmetric policy for {algorithm}; use one of {list(POLICIES)}")
     return POLICIES[algorithm]

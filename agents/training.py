@@ -41,7 +41,6 @@ from frictiongym.envs.config import ConfigError, Node, load_yaml
 from frictiongym.envs.plants.spec import RANDOMIZATION_KEYS
 from frictiongym.envs.records import atomic_text, atomic_write, command_line, csv_text
 from frictiongym.envs.scenario import load_scenario
-from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.suites import load_suite, suite_held_out
 
 from .base import Controller, EpisodeContext
@@ -56,11 +55,11 @@ from .learned import (
     residual_action,
 )
 from .settings import knowledge_defaults
+from .training_env import SEEDS_PER_RUN, TRAINING_SEEDS, TrainingVecEnv
 
-TRAINING_SEEDS = 10_000_000  # training episode seeds start here: run seed s, env i, episode k ->
-SEEDS_PER_RUN = 1_000_000  # TRAINING_SEEDS + s·SEEDS_PER_RUN + k·n_envs + i (no suite uses them)
 VALIDATION_SUITE = "validation"
-ALGORITHMS = ("SAC", "TD3", "PPO", "TQC", "RecurrentPPO")
+ALGORITHMS = ("SAC", "TD3", "TQC", "CrossQ", "PPO", "RecurrentPPO")
+OFF_POLICY = ("SAC", "TD3", "TQC", "CrossQ")  # replay-buffer learners: update_to_data applies
 REWARD_TERMS = ("tracking", "effort", "smoothness")
 ACTIVATIONS = ("relu", "tanh", "elu", "leaky_relu")
 MODEL, NORMALIZER, MANIFEST = "model.zip", "vecnormalize.pkl", "manifest.yaml"
@@ -76,6 +75,7 @@ class RunConfig:
     scenario: str
     total_timesteps: int
     n_envs: int
+    update_to_data: float | None  # gradient steps per env step (off-policy); None: hyperparams' own
     randomize: bool
     randomization: dict[str, tuple[float, float]]  # replaces the plant's ranges key by key
     reward: dict[str, float]  # scenario reward weights replaced (tracking, effort, smoothness)
@@ -193,16 +193,29 @@ def _run_config(c: Node, name: str, algo: str, scenario: str, source: str) -> Ru
     warmup = hyper.get("learning_starts", 100) > 0 and not (
         hyper.get("use_sde") and hyper.get("use_sde_at_warmup")
     )
-    if base is not None and algo in ("SAC", "TD3", "TQC") and warmup:
+    if base is not None and algo in OFF_POLICY and warmup:
         raise hp.error(
             "learning_starts",
             "a residual starts at zero output: set learning_starts: 0 (no uniform random actions at "
             "full authority), or use_sde with use_sde_at_warmup",
         )
-    if inputs.privileged and algo not in ("SAC", "TD3", "TQC"):
+    if inputs.privileged and algo not in OFF_POLICY:
         raise o.error(
-            "privileged_critic", f"asymmetric actor-critic is implemented for SAC, TD3 and TQC, not {algo}"
+            "privileged_critic",
+            f"asymmetric actor-critic is implemented for {', '.join(OFF_POLICY)}, not {algo}",
         )
+    n_envs = c.integer("n_envs", 1, 64)
+    utd = None if c.get("update_to_data") is None else c.positive("update_to_data", 64.0)
+    if utd is not None:
+        if algo not in OFF_POLICY:
+            raise c.error("update_to_data", f"applies to {', '.join(OFF_POLICY)}, not {algo}: set it to null")
+        for key in ("train_freq", "gradient_steps"):
+            if key in hyper:
+                raise hp.error(key, "update_to_data sets it (with n_envs): give one of the two, not both")
+        try:
+            sb3_schedule(utd, n_envs)
+        except ValueError as e:
+            raise c.error("update_to_data", str(e)) from None
     n = c.section("normalize")
     v = c.section("validation")
     cfg = RunConfig(
@@ -210,7 +223,8 @@ def _run_config(c: Node, name: str, algo: str, scenario: str, source: str) -> Ru
         algorithm=algo,
         scenario=scenario,
         total_timesteps=c.integer("total_timesteps", 1, 10**8),
-        n_envs=c.integer("n_envs", 1, 64),
+        n_envs=n_envs,
+        update_to_data=utd,
         randomize=c.boolean("randomize"),
         randomization=ranges,
         reward=reward,
@@ -232,6 +246,20 @@ def _run_config(c: Node, name: str, algo: str, scenario: str, source: str) -> Ru
     for node in (r, w, o, res, hp, n, v, c):
         node.done()
     return cfg
+
+
+def sb3_schedule(update_to_data: float, n_envs: int) -> tuple[int, int]:
+    """SB3's (train_freq in vector steps, gradient_steps) for `update_to_data` gradient steps per env step
+    with n_envs envs (one vector step = n_envs env steps): g = ratio·n_envs gradient steps after every
+    vector step if g >= 1, else one after every 1/g vector steps; either must be a whole number."""
+    g = update_to_data * n_envs
+    whole = round(g) if g >= 1 else round(1 / g)
+    if abs((g if g >= 1 else 1 / g) - whole) > 1e-9 * whole:
+        raise ValueError(
+            f"{update_to_data} x n_envs {n_envs} = {g:.6g} gradient steps per vector step: it, or its "
+            "inverse, must be a whole number"
+        )
+    return (1, whole) if g >= 1 else (whole, 1)
 
 
 def _check_hyperparams(algo: str, hyper: dict[str, Any], node: Node) -> None:
@@ -264,7 +292,8 @@ def scenario_overrides(cfg: RunConfig) -> dict[str, Any]:
 class ResidualEnv(gym.Wrapper):
     """A scenario's env as a learned compensator sees it: in residual mode the base controller runs in the
     loop (u = clip(u_base + α·a)) and the observation is extended with its action (policy_observation);
-    without a base, the env as it is. Used by training (PolicyEnv) and by rl-zoo (agents/zoo.py)."""
+    without a base, the env as it is: the single-env form of a training env (agents/training_env.py),
+    for rl-zoo (agents/zoo.py)."""
 
     def __init__(self, env: gym.Env, base: Controller | None, alpha: float):
         super().__init__(env)
@@ -293,47 +322,30 @@ class ResidualEnv(gym.Wrapper):
         return self._observe(obs), reward, term, trunc, info
 
 
-class PolicyEnv(ResidualEnv):
-    """The training env of one run: ResidualEnv with its episodes on a fixed seed schedule: first_seed,
-    first_seed + stride, ... (seeds passed to reset are ignored, so a VecEnv's seeding cannot move
-    training onto a suite's seeds)."""
-
-    def __init__(self, env: ServoEnv, base: Controller | None, alpha: float, first_seed: int, stride: int):
-        super().__init__(env, base, alpha)
-        self.first_seed, self.stride, self.episodes = first_seed, stride, 0
-
-    def set_episodes(self, n: int) -> None:
-        """Continue the seed schedule after n episodes (--resume)."""
-        self.episodes = n
-
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
-        episode_seed = self.first_seed + self.episodes * self.stride
-        self.episodes += 1
-        return super().reset(seed=episode_seed, options=options)
-
-
-def make_env(cfg: RunConfig, seed: int, rank: int, monitor_dir: str | None = None) -> gym.Env:
-    """Env `rank` of a run: the scenario with the config's randomisation and reward, the base controller's
-    hardware and the model's observation blocks, wrapped in PolicyEnv and a Monitor."""
-    from stable_baselines3.common.monitor import Monitor
-
+def training_env_kwargs(cfg: RunConfig) -> dict[str, Any]:
+    """The env keywords of a run's training envs: the config's randomisation and reward, the base
+    controller's hardware and the model's observation blocks (as the trained controller's evaluation
+    env gets them). Checks that the base applies to the scenario."""
     from .registry import make
 
     base = make(cfg.base) if cfg.base is not None else None
-    probe = SB3PolicyShape(cfg.inputs, base)
     sc = load_scenario(cfg.scenario, scenario_overrides(cfg) or None, randomize=cfg.randomize)
     if base is not None and (reason := base.why_not(sc)) is not None:
         raise ConfigError(
             "residual.base", f"{cfg.base} does not apply to {cfg.scenario}: {reason}", cfg.source
         )
-    env = ServoEnv(
-        cfg.scenario,
-        randomize=cfg.randomize,
-        overrides=controller_overrides(probe, sc, scenario_overrides(cfg)),
-    )
-    first = TRAINING_SEEDS + seed * SEEDS_PER_RUN + rank
-    wrapped = PolicyEnv(env, base, cfg.alpha, first, cfg.n_envs)
-    return Monitor(wrapped, os.path.join(monitor_dir, str(rank)) if monitor_dir else None)
+    probe = SB3PolicyShape(cfg.inputs, base)
+    return {"randomize": cfg.randomize, "overrides": controller_overrides(probe, sc, scenario_overrides(cfg))}
+
+
+def make_training_env(cfg: RunConfig, seed: int, nthread: int = 1) -> TrainingVecEnv:
+    """The n_envs training envs of run seed `seed` on the batched core, each env's own base controller in
+    the loop (agents/training_env.py)."""
+    from .registry import make
+
+    bases = (lambda: make(cfg.base)) if cfg.base is not None else None
+    kw = training_env_kwargs(cfg)
+    return TrainingVecEnv(cfg.scenario, cfg.n_envs, seed, bases=bases, alpha=cfg.alpha, nthread=nthread, **kw)
 
 
 class SB3PolicyShape(LearnedNeeds, Controller):
@@ -359,6 +371,8 @@ def build_model(cfg: RunConfig, venv: Any, seed: int, tb: str | None) -> Any:
     import torch
 
     hyper = dict(cfg.hyperparams)
+    if cfg.update_to_data is not None:
+        hyper["train_freq"], hyper["gradient_steps"] = sb3_schedule(cfg.update_to_data, cfg.n_envs)
     pk = dict(hyper.pop("policy_kwargs", {}) or {})
     if "activation_fn" in pk:
         pk["activation_fn"] = {
@@ -582,7 +596,7 @@ class TrainingRun:
     def train(self, resume: bool = False) -> dict[str, Any]:
         """Train, select, write the model folder; returns the manifest."""
         import torch
-        from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+        from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
 
         torch.set_num_threads(1)
         cfg, out = self.cfg, self.out
@@ -598,9 +612,8 @@ class TrainingRun:
         self.effort_ref = min(
             self.baseline.effort_rms, classical[cfg.base]["effort_rms"] if cfg.base else math.inf
         )
-        fns = [lambda i=i: make_env(cfg, self.seed, i, str(out / "monitor")) for i in range(cfg.n_envs)]
         (out / "monitor").mkdir(exist_ok=True)
-        venv: Any = DummyVecEnv(fns)
+        venv: Any = VecMonitor(make_training_env(cfg, self.seed), str(out / "monitor"))
         gamma = cfg.hyperparams.get("gamma", 0.99)
         state = None
         if resume and (ck / "state.json").exists():
@@ -671,7 +684,9 @@ class TrainingRun:
             "git_commit": prov["git_commit"],
             "stable_baselines3": stable_baselines3.__version__,
             "torch_threads": 1,
-            "training_seeds": f"{TRAINING_SEEDS + self.seed * SEEDS_PER_RUN} + k (episode k)",
+            "training_seeds": (
+                f"{TRAINING_SEEDS + self.seed * SEEDS_PER_RUN} + k·{cfg.n_envs} + i (env i, episode k)"
+            ),
             "validation": {
                 "suite": VALIDATION_SUITE,
                 "episodes": len(self.episodes),

@@ -23,15 +23,17 @@ from frictiongym.agents.learned import PolicyInputs, SB3Policy
 from frictiongym.agents.settings import knowledge_defaults
 from frictiongym.agents.training import (
     EXPORTED,
-    SEEDS_PER_RUN,
-    TRAINING_SEEDS,
+    ResidualEnv,
     TrainingRun,
     build_model,
     export_model,
     load_config,
-    make_env,
+    make_training_env,
+    sb3_schedule,
+    training_env_kwargs,
     validation_episodes,
 )
+from frictiongym.agents.training_env import SEEDS_PER_RUN, TRAINING_SEEDS, episode_seed
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.suites import load_suite
 
@@ -41,6 +43,12 @@ HYPER = {
     "SAC": {"learning_starts": 0, "batch_size": 32, "buffer_size": 2000, "policy_kwargs": {"net_arch": [16]}},
     "TD3": {"learning_starts": 0, "batch_size": 32, "buffer_size": 2000, "action_noise_std": 0.01},
     "TQC": {"learning_starts": 0, "batch_size": 32, "buffer_size": 2000, "policy_kwargs": {"n_critics": 2}},
+    "CrossQ": {
+        "learning_starts": 0,
+        "batch_size": 32,
+        "buffer_size": 2000,
+        "policy_kwargs": {"net_arch": [16]},
+    },
     "PPO": {"n_steps": 128, "batch_size": 64, "n_epochs": 1},
     "RecurrentPPO": {"n_steps": 128, "batch_size": 64, "n_epochs": 1},
 }
@@ -70,7 +78,7 @@ def train(tmp_path: Path, algo: str, out: str = "run", resume: bool = False, **k
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("algo", ["SAC", "TD3", "TQC", "PPO", "RecurrentPPO"])
+@pytest.mark.parametrize("algo", ["SAC", "TD3", "TQC", "CrossQ", "PPO", "RecurrentPPO"])
 def test_every_algorithm_trains_and_its_saved_model_acts_identically(tmp_path, algo):
     """A few hundred steps per algorithm; the model folder loads through the registry and reproduces the
     validation evaluation that selected it, to the last bit (same actions on the same episodes)."""
@@ -110,11 +118,9 @@ def test_a_residual_with_zero_output_is_bit_identical_to_its_base(tmp_path):
     base = registry.make("PID")
     episode = validation_episodes(SCENARIO)[0]
     ref = run_episode(base, episode, keep_log=True)
-    for algo in ("SAC", "TD3", "PPO"):
+    for algo in ("SAC", "TD3", "CrossQ", "PPO"):
         (cfg,) = load_config(write_config(tmp_path, algo))
-        from stable_baselines3.common.vec_env import DummyVecEnv
-
-        model = build_model(cfg, DummyVecEnv([lambda c=cfg: make_env(c, 0, 0)]), 0, None)
+        model = build_model(cfg, make_training_env(cfg, 0), 0, None)
         c = SB3Policy(model, inputs=cfg.inputs, base=registry.make("PID"), alpha=cfg.alpha)
         got = run_episode(c, episode, keep_log=True)
         assert got.metrics == ref.metrics, algo
@@ -123,30 +129,103 @@ def test_a_residual_with_zero_output_is_bit_identical_to_its_base(tmp_path):
 
 
 def test_training_env_uses_its_own_seeds_and_the_base_in_the_loop(tmp_path):
-    """Training episodes run on TRAINING_SEEDS + s·SEEDS_PER_RUN + k·n_envs + i, never a suite's seeds; the
-    observation ends with the base action."""
-    (cfg,) = load_config(write_config(tmp_path, "SAC"))
-    env = make_env(cfg, 3, 0)
+    """Training episodes run on TRAINING_SEEDS + s·SEEDS_PER_RUN + k·n_envs + i, never a suite's seeds;
+    the observation ends with the env's base action."""
+    (cfg,) = load_config(write_config(tmp_path, "SAC", n_envs=3))
+    venv = make_training_env(cfg, 3)
     suites = {e.seed for s in ("paper", "default", "validation", "test") for e in load_suite(s)}
+    obs = venv.reset()
     for k in range(3):
-        obs, info = env.reset(seed=1000)  # a passed seed does not move the schedule
-        assert info["episode_seed"] == TRAINING_SEEDS + 3 * SEEDS_PER_RUN + k
-        assert info["episode_seed"] not in suites
-    sc = env.unwrapped.scenario
-    pid = registry.make("PID")
-    pid.reset(EpisodeContext(sc, sc.spec, knowledge_defaults()))
-    assert obs[-1] == pid.act(obs[:-1])[0]
-    assert env.observation_space.shape[0] == env.unwrapped.observation_space.shape[0] + 1
+        assert list(venv.seeds) == [TRAINING_SEEDS + 3 * SEEDS_PER_RUN + k * 3 + i for i in range(3)]
+        assert not set(venv.seeds) & suites
+        if k < 2:
+            obs = venv.reset()
+    assert venv.get_attr("episodes") == [3, 3, 3]
+    sc = venv.scenario
+    for i in range(3):
+        pid = registry.make("PID")
+        pid.reset(EpisodeContext(sc, sc.spec, knowledge_defaults()))
+        assert obs[i, -1] == pid.act(obs[i, :-1])[0]
+    assert venv.observation_space.shape[0] == venv.core.obs_dim + 1
+
+
+class _Scheduled:
+    """Test helper: a single training env (ResidualEnv over ServoEnv) on env i's seed schedule."""
+
+    def __init__(self, env, i: int, n: int):
+        self.env, self.i, self.n, self.k = env, i, n, 0
+
+    def __getattr__(self, name):
+        return getattr(self.env, name)
+
+    def reset(self, *, seed=None, options=None):
+        self.k += 1
+        return self.env.reset(seed=episode_seed(0, self.i, self.k - 1, self.n))
+
+
+def _single_env_form(cfg):
+    """SB3's DummyVecEnv over n single envs as the batched training env's docstring says it behaves."""
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    from frictiongym.envs.servo_env import ServoEnv
+
+    kw = training_env_kwargs(cfg)
+
+    def one(i):
+        env = ResidualEnv(ServoEnv(cfg.scenario, **kw), registry.make(cfg.base), cfg.alpha)
+        return type("Scheduled", (_Scheduled, gym.Wrapper), {})(env, i, cfg.n_envs)
+
+    return DummyVecEnv([lambda i=i: one(i) for i in range(cfg.n_envs)])
+
+
+def test_batched_training_env_equals_sb3_dummy_vec_env_of_single_envs(tmp_path):
+    """The batched training env gives DummyVecEnv's observations, rewards (float32), dones and terminal
+    observations over single residual envs, bit for bit, across episode ends, for float32 actions and
+    the float64 ones exploration noise makes; and SAC trained on either learns the same network."""
+    import torch
+
+    (cfg,) = load_config(write_config(tmp_path, "SAC", n_envs=3))
+    ref, new = _single_env_form(cfg), make_training_env(cfg, 0)
+    assert np.array_equal(ref.reset(), new.reset())
+    rng = np.random.default_rng(0)
+    ends = 0
+    for t in range(300):  # the 250-step episodes end at t = 249
+        a = rng.uniform(-1.2, 1.2, (3, 1)).astype(np.float32 if t % 2 else np.float64)
+        (o1, r1, d1, i1), (o2, r2, d2, i2) = ref.step(a), new.step(a)
+        assert np.array_equal(o1, o2) and np.array_equal(r1, r2) and np.array_equal(d1, d2)
+        assert r1.dtype == r2.dtype == np.float32
+        for x, y in zip(i1, i2, strict=True):
+            assert x["TimeLimit.truncated"] == y["TimeLimit.truncated"]
+            assert ("terminal_observation" in x) == ("terminal_observation" in y)
+            if "terminal_observation" in x:
+                ends += 1
+                assert np.array_equal(x["terminal_observation"], y["terminal_observation"])
+    assert ends == 3
+    models = []
+    for venv in (_single_env_form(cfg), make_training_env(cfg, 0)):
+        model = build_model(cfg, venv, 0, None)
+        model.learn(300)
+        models.append(torch.nn.utils.parameters_to_vector(model.policy.parameters()))
+    assert torch.equal(*models)
+
+
+@pytest.mark.parametrize(
+    ("ratio", "n_envs", "schedule"),
+    [(1.0, 1, (1, 1)), (0.125, 64, (1, 8)), (0.25, 2, (2, 1)), (2.0, 16, (1, 32))],
+)
+def test_update_to_data_sets_sb3s_schedule(ratio, n_envs, schedule):
+    """update_to_data gradient steps per env step: (train_freq in vector steps, gradient_steps)."""
+    assert sb3_schedule(ratio, n_envs) == schedule
+    train_freq, gradient_steps = schedule
+    assert gradient_steps / (train_freq * n_envs) == ratio
 
 
 def test_asymmetric_actor_ignores_the_privileged_block(tmp_path):
     """With privileged_critic the critic reads ground truth, the actor does not: changing the privileged
     entries leaves the action unchanged, changing a sensor entry does not."""
     (cfg,) = load_config(write_config(tmp_path, "SAC", observation={"privileged_critic": True}))
-    from stable_baselines3.common.vec_env import DummyVecEnv
-
-    venv = DummyVecEnv([lambda: make_env(cfg, 0, 0)])
-    model = build_model(cfg, venv, 0, None)
+    model = build_model(cfg, make_training_env(cfg, 0), 0, None)
     import torch
 
     with torch.no_grad():  # give the actor a non-zero output first
@@ -186,6 +265,11 @@ def test_registry_skips_scenarios_with_another_observation(tmp_path):
         ({"randomization": {"friction_scale": [0.5, 50]}}, "randomization.friction_scale"),
         ({"totl_timesteps": 5}, "totl_timesteps"),
         ({"hyperparams": {"learning_starts": 100}}, "learning_starts"),
+        ({"n_envs": 16, "update_to_data": 0.3}, "update_to_data"),
+        (
+            {"update_to_data": 0.5, "hyperparams": {"learning_starts": 0, "gradient_steps": 2}},
+            "gradient_steps",
+        ),
     ],
 )
 def test_config_errors_name_the_field(tmp_path, entry, field):
@@ -286,15 +370,12 @@ def test_sim2real_on_a_tiny_grid(tmp_path):
     assert main(args) == 0 and len((tmp_path / "episodes.csv").read_text().splitlines()) == n
 
 
-@pytest.mark.parametrize("algo", ["SAC", "TD3", "TQC", "PPO"])
+@pytest.mark.parametrize("algo", ["SAC", "TD3", "TQC", "CrossQ", "PPO"])
 def test_policy_actions_equal_sb3_predict(tmp_path, algo):
     """SB3Policy's own prediction path (no per-call eval-mode switch) gives model.predict's actions
     bit for bit, in range and out of it, also after training switched the policy back to train mode."""
     (cfg,) = load_config(write_config(tmp_path, algo))
-    from stable_baselines3.common.vec_env import DummyVecEnv
-
-    venv = DummyVecEnv([lambda: make_env(cfg, 0, 0)])
-    model = build_model(cfg, venv, 0, None)
+    model = build_model(cfg, make_training_env(cfg, 0), 0, None)
     import torch
 
     with torch.no_grad():  # a non-trivial actor: the zeroed output layer would make every action equal
