@@ -161,6 +161,22 @@ def load_config(path: str | Path, scenario: str | None = None) -> list[RunConfig
     return out
 
 
+def run_config_with(
+    path: str | Path, scenario: str, overrides: dict[str, Any], algorithm: str | None = None
+) -> RunConfig:
+    """A scenario's run config with `overrides` (a mapping of its settings, merged key by key; a
+    hyper-parameter set to null takes the algorithm's default) and optionally another algorithm: a
+    variant of a config, e.g. one setup of scripts/bench_training.py."""
+    raw, file = _raw_config(path)
+    if scenario not in (raw.get("scenarios") or {}):
+        raise ConfigError("scenarios", f"no entry for scenario {scenario!r}", file)
+    entry = _deep_merge(scenario_settings(raw, scenario), overrides)
+    if algorithm is not None and algorithm not in ALGORITHMS:
+        raise ConfigError("algorithm", f"expected one of {list(ALGORITHMS)}, got {algorithm!r}", file)
+    node = Node(entry, file, f"scenarios.{scenario}.")
+    return _run_config(node, raw["name"], algorithm or raw["algorithm"], scenario, file)
+
+
 def _run_config(c: Node, name: str, algo: str, scenario: str, source: str) -> RunConfig:
     if load_scenario(scenario).held_out:  # (an unknown scenario is an error naming the available ones)
         raise ConfigError(
@@ -188,7 +204,7 @@ def _run_config(c: Node, name: str, algo: str, scenario: str, source: str) -> Ru
             )
     inputs = PolicyInputs(o.integer("history", 0, 64), o.boolean("privileged_critic"), base is not None)
     hp = c.section("hyperparams")
-    hyper = {k: hp[k] for k in list(hp.keys())}
+    hyper = {k: hp[k] for k in list(hp.keys()) if hp[k] is not None}  # null: the algorithm's default
     _check_hyperparams(algo, hyper, hp)
     warmup = hyper.get("learning_starts", 100) > 0 and not (
         hyper.get("use_sde") and hyper.get("use_sde_at_warmup")
@@ -469,6 +485,14 @@ def best_classical(scenario: str, results: dict[str, dict[str, float]]) -> Basel
     return Baseline(name, m[main], m["effort_rms"], m["limit_cycle_amp"])
 
 
+def gradient_steps(model: Any) -> int:
+    """The gradient steps a model has taken (PPO's _n_updates counts epochs of minibatches)."""
+    n = int(getattr(model, "_n_updates", 0))
+    if hasattr(model, "n_epochs"):
+        return n * math.ceil(model.n_steps * model.n_envs / model.batch_size)
+    return n
+
+
 def frozen_normalizer(venv: Any) -> Any:
     """A detached copy of a VecNormalize (its pickle drops the wrapped env), frozen."""
     from stable_baselines3.common.vec_env import VecNormalize
@@ -507,7 +531,8 @@ def _callback_class():
                 r.next_eval += r.cfg.eval_every_steps
                 r.validate(self.model, self.logger)
                 r.checkpoint(self.model)
-            if r.elapsed() > r.cfg.max_wall_time_s:
+            over = r.stop_after_train_s is not None and r.train_s() > r.stop_after_train_s
+            if r.elapsed() > r.cfg.max_wall_time_s or over:
                 r.stopped_early = True
                 return False
             return True
@@ -530,6 +555,8 @@ class TrainingRun:
         self.best: dict[str, float] | None = None
         self.next_eval = cfg.eval_every_steps
         self.wall_before, self.stopped_early = 0.0, False
+        self.eval_s = 0.0  # wall time spent in validation (train_s = elapsed - eval_s)
+        self.stop_after_train_s: float | None = None  # also stop after this much training time (bench)
         self.reporter: Callable[[dict[str, float]], None] | None = None  # e.g. Ray Tune's report
 
     def elapsed(self) -> float:
@@ -550,14 +577,22 @@ class TrainingRun:
             normalizer=normalizer,
         )
 
+    def train_s(self) -> float:
+        """Wall time spent training (learning and env stepping), validation excluded."""
+        return self.elapsed() - self.eval_s
+
     def validate(self, model: Any, logger: Any) -> None:
+        t0 = time.monotonic()
         m = evaluate_controller(
             self.controller(model, frozen_normalizer(model.get_env())), self.episodes, self.envs
         )
+        self.eval_s += time.monotonic() - t0
         zero = self.zero[self.main]
         row = {
             "step": model.num_timesteps,
             "wall_s": round(self.elapsed(), 1),
+            "train_s": round(self.train_s(), 1),
+            "gradient_steps": gradient_steps(model),
             "main": m[self.main],
             "score": 1.0 - m[self.main] / zero if zero > 0 else math.nan,
             "effort_rms": m["effort_rms"],
@@ -586,6 +621,7 @@ class TrainingRun:
             "num_timesteps": model.num_timesteps,
             "wall_s": self.elapsed(),
             "history": self.history,
+            "eval_s": self.eval_s,
             "best": self.best,
             "next_eval": self.next_eval,
             "episodes": model.get_env().get_attr("episodes"),
@@ -628,7 +664,7 @@ class TrainingRun:
             for i, n in enumerate(state["episodes"]):
                 venv.env_method("set_episodes", n, indices=[i])
             self.history, self.best, self.next_eval = state["history"], state["best"], state["next_eval"]
-            self.wall_before = state["wall_s"]
+            self.wall_before, self.eval_s = state["wall_s"], state.get("eval_s", 0.0)
         else:
             if cfg.normalize_observation or cfg.normalize_reward:
                 venv = VecNormalize(
