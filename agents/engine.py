@@ -128,8 +128,11 @@ def _watch_parent(parent: int) -> None:
 
 
 def init_worker(parent: int | None = None) -> None:
-    """A pool worker: one thread for BLAS, torch and MuJoCo (the pool is the parallelism); Ctrl-C left
-    to the parent, which stops the pool; exits when `parent` (a pid) dies."""
+    """A pool worker: one thread for BLAS, torch, JAX and MuJoCo (the pool is the parallelism); Ctrl-C
+    left to the parent, which stops the pool; exits when `parent` (a pid) dies."""
+    if "jax" not in sys.modules:  # read when JAX starts (sbx learners)
+        one = "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+        os.environ.setdefault("XLA_FLAGS", one)
     if "torch" in sys.modules:
         sys.modules["torch"].set_num_threads(1)
     if parent is not None:

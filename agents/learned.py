@@ -68,7 +68,16 @@ def residual_action(base_action: np.ndarray, residual: np.ndarray, alpha: float)
 
 
 def algorithm_class(algo: str) -> Any:
-    """The stable-baselines3 or sb3-contrib class called algo (e.g. "SAC", "TQC", "RecurrentPPO")."""
+    """The stable-baselines3 or sb3-contrib class called algo (e.g. "SAC", "TQC", "RecurrentPPO"), or
+    sbx's (JAX) for "sbx.<name>" (e.g. "sbx.SAC"; the optional sbx extra)."""
+    if algo.startswith("sbx."):
+        try:
+            module = importlib.import_module("sbx")
+        except ImportError:
+            raise ValueError(f"algorithm {algo!r} needs sbx: pip install -e '.[sbx]'") from None
+        if (cls_ := getattr(module, algo[4:], None)) is not None:
+            return cls_
+        raise ValueError(f"algorithm {algo!r} is not an sbx class")
     missing = []
     for package in ("stable_baselines3", "sb3_contrib"):
         try:
@@ -80,6 +89,11 @@ def algorithm_class(algo: str) -> Any:
             return cls_
     hint = f" ({' and '.join(missing)} not installed: pip install -e '.[rl]')" if missing else ""
     raise ValueError(f"algorithm {algo!r} is not a stable-baselines3 or sb3-contrib class{hint}")
+
+
+def is_jax(model: Any) -> bool:
+    """Whether a model is sbx's (JAX / flax networks), not a torch one."""
+    return type(model).__module__.split(".")[0] == "sbx"
 
 
 def sha256(path: str | Path) -> str:
@@ -130,6 +144,7 @@ class SB3Policy(LearnedNeeds, Controller):
         if normalizer is not None:
             normalizer.training = False  # frozen statistics at evaluation
         self.recurrent = hasattr(model.policy, "lstm_actor")
+        self.jax = is_jax(model)
         self.hashes: dict[str, str] = {}
 
     @classmethod
@@ -183,6 +198,8 @@ class SB3Policy(LearnedNeeds, Controller):
                 x, state=self.state, episode_start=self.start, deterministic=True
             )
             self.start = np.zeros(1, dtype=bool)
+        elif self.jax:
+            a = self.model.predict(x, deterministic=True)[0]
         else:
             a = self._predict(x)
         if ub is None:

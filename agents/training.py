@@ -21,13 +21,16 @@ import contextlib
 import copy
 import dataclasses
 import inspect
+import io
 import json
 import math
+import multiprocessing as mp
 import os
 import pickle
 import sys
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -44,13 +47,14 @@ from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import load_suite, suite_held_out
 
 from .base import Controller, EpisodeContext
-from .engine import init_worker, provenance
+from .engine import init_worker, provenance, stop_workers
 from .evaluate import EnvCache, controller_overrides, run_episode
 from .learned import (
     LearnedNeeds,
     PolicyInputs,
     SB3Policy,
     algorithm_class,
+    is_jax,
     policy_observation,
     residual_action,
 )
@@ -58,8 +62,10 @@ from .settings import knowledge_defaults
 from .training_env import SEEDS_PER_RUN, TRAINING_SEEDS, TrainingVecEnv
 
 VALIDATION_SUITE = "validation"
-ALGORITHMS = ("SAC", "TD3", "TQC", "CrossQ", "PPO", "RecurrentPPO")
-OFF_POLICY = ("SAC", "TD3", "TQC", "CrossQ")  # replay-buffer learners: update_to_data applies
+ASYMMETRIC = ("SAC", "TD3", "TQC", "CrossQ")  # the privileged critic (agents/asymmetric.py)
+JAX = ("sbx.SAC", "sbx.TQC", "sbx.CrossQ")  # sbx's JAX learners (the optional sbx extra)
+OFF_POLICY = (*ASYMMETRIC, *JAX)  # replay-buffer learners: update_to_data applies
+ALGORITHMS = (*OFF_POLICY, "PPO", "RecurrentPPO")
 REWARD_TERMS = ("tracking", "effort", "smoothness")
 ACTIVATIONS = ("relu", "tanh", "elu", "leaky_relu")
 MODEL, NORMALIZER, MANIFEST = "model.zip", "vecnormalize.pkl", "manifest.yaml"
@@ -178,6 +184,10 @@ def run_config_with(
 
 
 def _run_config(c: Node, name: str, algo: str, scenario: str, source: str) -> RunConfig:
+    try:
+        algorithm_class(algo)  # an optional extra (sbx) may be missing
+    except ValueError as e:
+        raise ConfigError("algorithm", str(e), source) from None
     if load_scenario(scenario).held_out:  # (an unknown scenario is an error naming the available ones)
         raise ConfigError(
             f"scenarios.{scenario}",
@@ -215,10 +225,10 @@ def _run_config(c: Node, name: str, algo: str, scenario: str, source: str) -> Ru
             "a residual starts at zero output: set learning_starts: 0 (no uniform random actions at "
             "full authority), or use_sde with use_sde_at_warmup",
         )
-    if inputs.privileged and algo not in OFF_POLICY:
+    if inputs.privileged and algo not in ASYMMETRIC:
         raise o.error(
             "privileged_critic",
-            f"asymmetric actor-critic is implemented for {', '.join(OFF_POLICY)}, not {algo}",
+            f"asymmetric actor-critic is implemented for {', '.join(ASYMMETRIC)}, not {algo}",
         )
     n_envs = c.integer("n_envs", 1, 64)
     utd = None if c.get("update_to_data") is None else c.positive("update_to_data", 64.0)
@@ -421,6 +431,8 @@ def build_model(cfg: RunConfig, venv: Any, seed: int, tb: str | None) -> Any:
 
 def zero_output(model: Any, std: float) -> None:
     """Make the policy's mean action exactly 0 (last layer zeroed) and its std `std` (action units)."""
+    if is_jax(model):
+        return _zero_output_flax(model, std)
     import torch
 
     with torch.no_grad():
@@ -439,6 +451,27 @@ def zero_output(model: Any, std: float) -> None:
         last.bias.zero_()
         if hasattr(model, "actor_target"):
             model.actor_target.load_state_dict(model.actor.state_dict())
+
+
+def _zero_output_flax(model: Any, std: float) -> None:
+    """zero_output for sbx's squashed-Gaussian actors: their last two Dense layers are the mean and the
+    log std (SAC and TQC nest the layers under "params", CrossQ does not)."""
+    import jax.numpy as jnp
+
+    state = model.policy.actor_state
+    nested = "params" in state.params
+    tree = state.params["params"] if nested else state.params
+    dense = sorted((k for k in tree if k.startswith("Dense_")), key=lambda k: int(k.split("_")[1]))
+    mean, log_std = dense[-2], dense[-1]
+    tree = {
+        **tree,
+        mean: {k: jnp.zeros_like(v) for k, v in tree[mean].items()},
+        log_std: {
+            "kernel": jnp.zeros_like(tree[log_std]["kernel"]),
+            "bias": jnp.full_like(tree[log_std]["bias"], math.log(std)),
+        },
+    }
+    model.policy.actor_state = state.replace(params={**state.params, "params": tree} if nested else tree)
 
 
 # ------------------------------------------------------------------------------------------- validation
@@ -493,24 +526,86 @@ def gradient_steps(model: Any) -> int:
     return n
 
 
-def frozen_normalizer(venv: Any) -> Any:
-    """A detached copy of a VecNormalize (its pickle drops the wrapped env), frozen."""
-    from stable_baselines3.common.vec_env import VecNormalize
+@dataclass(frozen=True)
+class Snapshot:
+    """A model as saved (model.zip bytes) with its VecNormalize's pickle (None without one): what is
+    evaluated, kept as the best model, and checkpointed."""
 
-    if not isinstance(venv, VecNormalize):
-        return None
-    norm = pickle.loads(pickle.dumps(venv))
-    norm.training = False
-    return norm
+    model: bytes
+    normalizer: bytes | None
+
+    @classmethod
+    def of(cls, model: Any) -> Snapshot:
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        buf = io.BytesIO()
+        model.save(buf)
+        venv = model.get_env()  # a VecNormalize pickles without the env it wraps
+        return cls(buf.getvalue(), pickle.dumps(venv) if isinstance(venv, VecNormalize) else None)
+
+    @classmethod
+    def read(cls, folder: Path) -> Snapshot:
+        norm = folder / NORMALIZER
+        return cls((folder / MODEL).read_bytes(), norm.read_bytes() if norm.exists() else None)
+
+    def write(self, folder: Path) -> None:
+        folder.mkdir(parents=True, exist_ok=True)
+        atomic_write(folder / MODEL, lambda p: p.write_bytes(self.model))
+        if self.normalizer is not None:
+            atomic_write(folder / NORMALIZER, lambda p: p.write_bytes(self.normalizer))
 
 
-def _save_model(model: Any, venv: Any, folder: Path) -> None:
-    folder.mkdir(parents=True, exist_ok=True)
-    atomic_write(folder / MODEL, lambda p: model.save(p))
-    from stable_baselines3.common.vec_env import VecNormalize
+@dataclass
+class _Pending:
+    """An evaluation started and not yet recorded: its row's step and clocks, the snapshot, the result."""
 
-    if isinstance(venv, VecNormalize):  # its pickle leaves out the wrapped env
-        atomic_write(folder / NORMALIZER, lambda p: p.write_bytes(pickle.dumps(venv)))
+    meta: dict[str, Any]
+    snapshot: Snapshot
+    result: Future
+
+
+_EVAL_ENVS = EnvCache()  # the validation envs of this process (a worker's, or the training process')
+
+
+def evaluate_snapshot(
+    cfg: RunConfig, name: str, model: bytes, normalizer: bytes | None, episodes: list
+) -> dict[str, float]:
+    """Metric means of a saved model on the episodes through the leaderboard's loop (evaluate_controller),
+    deterministic, its observation statistics frozen: in the validation worker or in the training process,
+    the same numbers (picklable for the worker). The global random generators are left as they were (SB3's
+    load reseeds them), so validation in the training process does not change the training."""
+    with _generators_kept():
+        return _evaluate_snapshot(cfg, name, model, normalizer, episodes)
+
+
+@contextlib.contextmanager
+def _generators_kept() -> Any:
+    """Python's, numpy's and torch's global random generators restored on exit."""
+    import random
+
+    import torch
+
+    saved = random.getstate(), np.random.get_state(), torch.get_rng_state()
+    try:
+        yield
+    finally:
+        random.setstate(saved[0])
+        np.random.set_state(saved[1])
+        torch.set_rng_state(saved[2])
+
+
+def _evaluate_snapshot(
+    cfg: RunConfig, name: str, model: bytes, normalizer: bytes | None, episodes: list
+) -> dict[str, float]:
+    from .registry import make
+
+    loaded = algorithm_class(cfg.algorithm).load(io.BytesIO(model), device="cpu")
+    norm = pickle.loads(normalizer) if normalizer is not None else None
+    if norm is not None:
+        norm.training = False
+    base = make(cfg.base) if cfg.base is not None else None
+    policy = SB3Policy(loaded, (), name, inputs=cfg.inputs, base=base, alpha=cfg.alpha, normalizer=norm)
+    return evaluate_controller(policy, episodes, _EVAL_ENVS)
 
 
 def _callback_class():
@@ -518,19 +613,22 @@ def _callback_class():
 
     class Validation(BaseCallback):
         """Every `every` steps: evaluate the deterministic policy on the validation episodes through the
-        leaderboard's loop, log it, keep the best admissible model, write a checkpoint; stop at the wall
-        time limit."""
+        leaderboard's loop (in the validation worker, while training goes on), log it, keep the best
+        admissible model, write a checkpoint; stop at the wall time limit."""
 
         def __init__(self, run: TrainingRun):
             super().__init__()
             self.run = run
 
+        def _on_training_start(self) -> None:
+            self.run.logger = self.logger
+
         def _on_step(self) -> bool:
             r = self.run
             if self.num_timesteps >= r.next_eval:
                 r.next_eval += r.cfg.eval_every_steps
-                r.validate(self.model, self.logger)
-                r.checkpoint(self.model)
+                r.collect(block=True)  # the previous evaluation: at most one runs beside training
+                r.checkpoint(self.model, r.validate(self.model))
             over = r.stop_after_train_s is not None and r.train_s() > r.stop_after_train_s
             if r.elapsed() > r.cfg.max_wall_time_s or over:
                 r.stopped_early = True
@@ -543,8 +641,21 @@ def _callback_class():
 class TrainingRun:
     """One (config, scenario, seed) run into `out`, resumable from out/checkpoint."""
 
-    def __init__(self, cfg: RunConfig, seed: int, out: Path, command: str, progress: bool = True):
+    def __init__(
+        self,
+        cfg: RunConfig,
+        seed: int,
+        out: Path,
+        command: str,
+        progress: bool = True,
+        parallel_validation: bool = True,
+    ):
         self.cfg, self.seed, self.out, self.command, self.progress = cfg, seed, Path(out), command, progress
+        # validation in a worker process on the other core (not from a daemonic pool worker, which may
+        # not have children); the results are the same either way (the same saved snapshot is evaluated)
+        self.parallel_validation = parallel_validation and not mp.current_process().daemon
+        self.pool: ProcessPoolExecutor | None = None
+        self.pending: list[_Pending] = []
         self.name = f"{cfg.name}-{cfg.scenario}-s{seed}"  # unique across a config's scenarios
         self.episodes = validation_episodes(cfg.scenario)[: cfg.eval_episodes]
         if not self.episodes:
@@ -555,44 +666,54 @@ class TrainingRun:
         self.best: dict[str, float] | None = None
         self.next_eval = cfg.eval_every_steps
         self.wall_before, self.stopped_early = 0.0, False
-        self.eval_s = 0.0  # wall time spent in validation (train_s = elapsed - eval_s)
+        self.eval_s = 0.0  # wall time the training waited for validation (train_s = elapsed - eval_s)
         self.stop_after_train_s: float | None = None  # also stop after this much training time (bench)
         self.reporter: Callable[[dict[str, float]], None] | None = None  # e.g. Ray Tune's report
+        self.logger: Any = None  # the model's logger (validation metrics to TensorBoard)
 
     def elapsed(self) -> float:
         return self.wall_before + time.monotonic() - self.t0
 
     # ----------------------------------------------------------------------------- evaluation
-    def controller(self, model: Any, normalizer: Any) -> SB3Policy:
-        from .registry import make
-
-        base = make(self.cfg.base) if self.cfg.base is not None else None
-        return SB3Policy(
-            model,
-            (),
-            self.name,
-            inputs=self.cfg.inputs,
-            base=base,
-            alpha=self.cfg.alpha,
-            normalizer=normalizer,
-        )
-
     def train_s(self) -> float:
-        """Wall time spent training (learning and env stepping), validation excluded."""
+        """Wall time spent training (learning and env stepping), waits for validation excluded."""
         return self.elapsed() - self.eval_s
 
-    def validate(self, model: Any, logger: Any) -> None:
+    def validate(self, model: Any) -> Snapshot:
+        """Start the evaluation of the model as it is now (a saved snapshot, in the validation worker, or
+        here); collect() records it. Returns the snapshot (the checkpoint's model)."""
         t0 = time.monotonic()
-        m = evaluate_controller(
-            self.controller(model, frozen_normalizer(model.get_env())), self.episodes, self.envs
-        )
+        snap = Snapshot.of(model)
+        job = (self.cfg, self.name, snap.model, snap.normalizer, self.episodes)
+        if self.parallel_validation:
+            if self.pool is None:
+                self.pool = ProcessPoolExecutor(
+                    1, mp.get_context("spawn"), initializer=init_worker, initargs=(os.getpid(),)
+                )
+            result = self.pool.submit(evaluate_snapshot, *job)
+        else:
+            result = Future()
+            result.set_result(evaluate_snapshot(*job))
+        meta = {"step": model.num_timesteps, "gradient_steps": gradient_steps(model)}
         self.eval_s += time.monotonic() - t0
+        meta |= {"wall_s": round(self.elapsed(), 1), "train_s": round(self.train_s(), 1)}
+        self.pending.append(_Pending(meta, snap, result))
+        self.collect(block=False)
+        return snap
+
+    def collect(self, block: bool) -> None:
+        """Record the finished evaluations in order (all of them, waiting, if block)."""
+        while self.pending and (block or self.pending[0].result.done()):
+            p = self.pending.pop(0)
+            t0 = time.monotonic()
+            m = p.result.result()
+            self.eval_s += time.monotonic() - t0
+            self._record(p.meta, p.snapshot, m)
+
+    def _record(self, meta: dict[str, Any], snap: Snapshot, m: dict[str, float]) -> None:
         zero = self.zero[self.main]
         row = {
-            "step": model.num_timesteps,
-            "wall_s": round(self.elapsed(), 1),
-            "train_s": round(self.train_s(), 1),
-            "gradient_steps": gradient_steps(model),
+            **meta,
             "main": m[self.main],
             "score": 1.0 - m[self.main] / zero if zero > 0 else math.nan,
             "effort_rms": m["effort_rms"],
@@ -601,22 +722,27 @@ class TrainingRun:
         }
         row["admissible"] = float(row["effort_rms"] <= self.cfg.max_effort_ratio * self.effort_ref)
         self.history.append(row)
-        for k in ("main", "score", "effort_rms"):
-            logger.record(f"validation/{k}", row[k])
+        if self.logger is not None:
+            for k in ("main", "score", "effort_rms"):
+                self.logger.record(f"validation/{k}", row[k])
         if row["admissible"] and (self.best is None or row["main"] < self.best["main"]):
             self.best = row
-            _save_model(model, model.get_env(), self.out)
+            snap.write(self.out)
         atomic_text(self.out / "validation.csv", csv_text(self.history))
         if self.reporter is not None:
             self.reporter(row)
 
     # ----------------------------------------------------------------------------- checkpoints
-    def checkpoint(self, model: Any) -> None:
-        """model, normalizer, replay buffer and this run's state into out/checkpoint, each atomically."""
+    def checkpoint(self, model: Any, snap: Snapshot) -> None:
+        """The model now (snap: its snapshot), normalizer, replay buffer and this run's state into
+        out/checkpoint, each atomically; an evaluation still running is re-run on --resume."""
         ck = self.out / "checkpoint"
-        _save_model(model, model.get_env(), ck)
+        snap.write(ck)
         if hasattr(model, "replay_buffer") and model.replay_buffer is not None:
             atomic_write(ck / "replay_buffer.pkl", lambda p: model.save_replay_buffer(p))
+        self.write_state(model)
+
+    def write_state(self, model: Any) -> None:
         state = {
             "num_timesteps": model.num_timesteps,
             "wall_s": self.elapsed(),
@@ -625,8 +751,9 @@ class TrainingRun:
             "best": self.best,
             "next_eval": self.next_eval,
             "episodes": model.get_env().get_attr("episodes"),
+            "pending": [p.meta for p in self.pending],  # at most the checkpoint's own model
         }
-        atomic_text(ck / "state.json", json.dumps(state))
+        atomic_text(self.out / "checkpoint" / "state.json", json.dumps(state))
 
     # ----------------------------------------------------------------------------- the run
     def train(self, resume: bool = False) -> dict[str, Any]:
@@ -665,6 +792,10 @@ class TrainingRun:
                 venv.env_method("set_episodes", n, indices=[i])
             self.history, self.best, self.next_eval = state["history"], state["best"], state["next_eval"]
             self.wall_before, self.eval_s = state["wall_s"], state.get("eval_s", 0.0)
+            for meta in state.get("pending", []):  # the checkpoint's model, not evaluated before the stop
+                snap = Snapshot.read(ck)
+                m = evaluate_snapshot(cfg, self.name, snap.model, snap.normalizer, self.episodes)
+                self._record(meta, snap, m)
         else:
             if cfg.normalize_observation or cfg.normalize_reward:
                 venv = VecNormalize(
@@ -674,17 +805,24 @@ class TrainingRun:
         done = model.num_timesteps
         self.t0 = time.monotonic()
         remaining = cfg.total_timesteps - done
-        if remaining > 0:
-            model.learn(
-                remaining,
-                callback=_callback_class()(self),
-                reset_num_timesteps=state is None,
-                progress_bar=self.progress,
-                tb_log_name="run",
-            )
-            if not self.history or self.history[-1]["step"] != model.num_timesteps:  # the final model too
-                self.validate(model, model.logger)
-            self.checkpoint(model)
+        try:
+            if remaining > 0:
+                model.learn(
+                    remaining,
+                    callback=_callback_class()(self),
+                    reset_num_timesteps=state is None,
+                    progress_bar=self.progress,
+                    tb_log_name="run",
+                )
+                evaluated = [r["step"] for r in self.history] + [p.meta["step"] for p in self.pending]
+                final = Snapshot.of(model) if evaluated and evaluated[-1] == model.num_timesteps else None
+                self.checkpoint(model, final or self.validate(model))  # the final model evaluated too
+                self.collect(block=True)
+                self.write_state(model)
+        finally:
+            if self.pool is not None:
+                self.pool.shutdown(cancel_futures=True)
+                self.pool = None
         if self.best is None:
             raise RuntimeError(
                 f"{self.name}: no validation evaluation had effort_rms <= {cfg.max_effort_ratio} x "
@@ -802,11 +940,20 @@ def train_many(
     jobs = [(c, s, str(run_dir(out, c, s)), command, resume, workers == 1) for c in cfgs for s in seeds]
     if workers == 1:
         return [train_one(j) for j in jobs]
-    import multiprocessing as mp
-
-    # Ctrl-C is the parent's (workers ignore it; leaving the block terminates them); a killed parent's
-    # workers exit by themselves
-    with mp.get_context("spawn").Pool(
-        workers, initializer=init_worker, initargs=(os.getpid(),), maxtasksperchild=1
-    ) as pool:
-        return pool.map(train_one, jobs, chunksize=1)
+    # Ctrl-C is the parent's (workers ignore it; the pool's processes are terminated); a killed parent's
+    # workers exit by themselves. The pool's processes are not daemonic, so that each run can start its
+    # validation worker on the other core (TrainingRun.parallel_validation).
+    pool = ProcessPoolExecutor(
+        workers,
+        mp.get_context("spawn"),
+        initializer=init_worker,
+        initargs=(os.getpid(),),
+        max_tasks_per_child=1,
+    )
+    try:
+        return list(pool.map(train_one, jobs))
+    except BaseException:
+        stop_workers()
+        raise
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)

@@ -47,8 +47,9 @@ def load_setups(path: Path) -> tuple[float, dict[str, tuple[str | None, dict[str
 def run_one(job: tuple[str, str, str, str | None, dict, int, float, str, str]) -> dict[str, Any]:
     """One (setup, seed) run; its figures (picklable for the pool)."""
     config, scenario, setup, algorithm, overrides, seed, budget, out, command = job
+    overrides = {"total_timesteps": 10**8, **overrides}  # the budget ends the run
     cfg = run_config_with(config, scenario, overrides, algorithm)
-    run = TrainingRun(cfg, seed, Path(out), command, progress=False)
+    run = TrainingRun(cfg, seed, Path(out), command, progress=False, parallel_validation=False)
     run.stop_after_train_s = budget
     row: dict[str, Any] = {"setup": setup, "seed": seed, "algorithm": cfg.algorithm, "n_envs": cfg.n_envs}
     try:
@@ -137,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
     except ConfigError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    out = args.out / args.config.replace("/", "_") / args.scenario
+    out = args.out / Path(args.config).stem / args.scenario
     command = command_line()
     jobs = [
         (args.config, args.scenario, name, alg, ov, seed, budget, str(out / name / f"seed{seed}"), command)

@@ -49,6 +49,18 @@ HYPER = {
         "buffer_size": 2000,
         "policy_kwargs": {"net_arch": [16]},
     },
+    "sbx.SAC": {
+        "learning_starts": 0,
+        "batch_size": 32,
+        "buffer_size": 2000,
+        "policy_kwargs": {"net_arch": [16]},
+    },
+    "sbx.CrossQ": {
+        "learning_starts": 0,
+        "batch_size": 32,
+        "buffer_size": 2000,
+        "policy_kwargs": {"net_arch": [16]},
+    },
     "PPO": {"n_steps": 128, "batch_size": 64, "n_epochs": 1},
     "RecurrentPPO": {"n_steps": 128, "batch_size": 64, "n_epochs": 1},
 }
@@ -57,7 +69,7 @@ HYPER = {
 def write_config(tmp_path: Path, algo: str, steps: int = 256, **extra) -> Path:
     entry = {"residual": {"base": "PID", "alpha": 0.1}, **extra}
     cfg = {
-        "name": f"Smoke{algo}",
+        "name": f"Smoke{algo.replace('.', '_')}",
         "algorithm": algo,
         "defaults": {
             "total_timesteps": steps,
@@ -110,6 +122,31 @@ def test_resume_continues_the_same_run(tmp_path):
     # the resumed run starts a fresh episode (SB3 resets the env after loading) with the schedule's next
     # seed: episodes 3 (steps 257-506) and 4; a restarted schedule would have counted 2
     assert state["episodes"] == [4]
+
+
+@pytest.mark.slow
+def test_validation_beside_training_gives_the_same_run_as_validation_in_turn(tmp_path):
+    """Validation in the worker process (on the other core) and in the training process record the same
+    rows and select the same model; training itself is not touched by either."""
+    import torch
+
+    (cfg,) = load_config(write_config(tmp_path, "SAC", steps=384))
+    runs = {}
+    for parallel in (True, False):
+        folder = tmp_path / f"parallel{parallel}"
+        run = TrainingRun(cfg, 0, folder, "pytest", progress=False, parallel_validation=parallel)
+        manifest = run.train()
+        model = registry.make(manifest["name"], (str(folder),)).model
+        runs[parallel] = (
+            run.history,
+            manifest,
+            torch.nn.utils.parameters_to_vector(model.policy.parameters()),
+        )
+    keys = ("step", "gradient_steps", "main", "effort_rms", "admissible")
+    (h1, m1, p1), (h2, m2, p2) = runs[True], runs[False]
+    assert [[r[k] for k in keys] for r in h1] == [[r[k] for k in keys] for r in h2]
+    assert [r["step"] for r in h1] == [128, 256, 384]
+    assert m1["selected_step"] == m2["selected_step"] and torch.equal(p1, p2)
 
 
 def test_a_residual_with_zero_output_is_bit_identical_to_its_base(tmp_path):
@@ -403,3 +440,75 @@ def test_algorithm_class_names_the_missing_rl_extra(monkeypatch):
     monkeypatch.setattr(learned.importlib, "import_module", no_sb3)
     with pytest.raises(ValueError, match=r"stable_baselines3 and sb3_contrib not installed: pip install"):
         learned.algorithm_class("SAC")
+    with pytest.raises(ValueError, match=r"needs sbx: pip install -e '\.\[sbx\]'"):
+        learned.algorithm_class("sbx.SAC")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("algo", ["sbx.SAC", "sbx.CrossQ"])
+def test_sbx_learners_start_at_their_base_and_reload_identically(tmp_path, algo):
+    """The optional JAX learners (sbx extra): the residual starts at exactly its base controller (the
+    flax mean layer zeroed), and the trained folder loads through the registry and reproduces the
+    validation evaluation that selected it."""
+    pytest.importorskip("sbx")
+    (cfg,) = load_config(write_config(tmp_path, algo))
+    episode = validation_episodes(SCENARIO)[0]
+    model = build_model(cfg, make_training_env(cfg, 0), 0, None)
+    got = run_episode(
+        SB3Policy(model, inputs=cfg.inputs, base=registry.make("PID"), alpha=cfg.alpha), episode
+    )
+    assert got.metrics == run_episode(registry.make("PID"), episode).metrics
+    manifest, folder = train(tmp_path, algo)
+    c = registry.make(manifest["name"], (str(folder),))
+    main = [
+        run_episode(c, e).metrics[manifest["validation"]["main_metric"]]
+        for e in validation_episodes(SCENARIO)[:2]
+    ]
+    assert np.mean(main) == manifest["validation"]["value"] and manifest["algorithm"] == algo
+
+
+@pytest.mark.slow
+def test_bench_training_prints_speed_time_to_beat_and_ratios(tmp_path):
+    """scripts/bench_training.py on two tiny setups: one CSV row per run with its speed, the baseline it
+    is timed against, and the ratio table led by the reference setup at 1.00x."""
+    config = write_config(tmp_path, "SAC")
+    setups = tmp_path / "setups.yaml"
+    setups.write_text(
+        yaml.safe_dump(
+            {
+                "budget_train_s": 3,
+                "setups": {"one": {}, "four": {"n_envs": 4, "update_to_data": 0.25, "hyperparams": {}}},
+            },
+            sort_keys=False,  # the first setup is the reference
+        )
+    )
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "scripts/bench_training.py"),
+            str(config),
+            "--scenario",
+            SCENARIO,
+            "--setups",
+            str(setups),
+            "--out",
+            str(tmp_path / "out"),
+            "--workers",
+            "2",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    import csv
+
+    rows = list(csv.DictReader((tmp_path / "out" / config.stem / SCENARIO / "bench_training.csv").open()))
+    assert sorted(r["setup"] for r in rows) == ["four", "one"]
+    for r in rows:
+        assert float(r["env_steps_per_s"]) > 0 and float(r["gradient_steps_per_s"]) > 0
+        assert r["baseline"] in registry.BUILTIN and float(r["baseline_main"]) > 0
+        assert float(r["train_s"]) >= 3  # the budget ends the run
+    four = next(r for r in rows if r["setup"] == "four")
+    assert int(four["n_envs"]) == 4
+    assert "one                      env steps/s   1.00x" in proc.stdout
