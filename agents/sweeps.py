@@ -125,7 +125,7 @@ def run_sweep(sweep: Sweep, out: Path, address: str | None = None, workers: int 
         cfg = trial_config(sweep, values)
         trial = tune.get_context().get_trial_id()
         folder = out / sweep.name / sweep.scenario / f"seed{seed}-{trial}"
-        run = TrainingRun(cfg, seed, folder, command, progress=False, parallel_validation=False)  # Ray's CPUs
+        run = TrainingRun(cfg, seed, folder, command, progress=False)  # validation in turn: Ray's CPUs
         run.reporter = lambda row: tune.report(
             {
                 METRIC: row["main"] if row["admissible"] else math.inf,

@@ -31,6 +31,7 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -40,7 +41,7 @@ import numpy as np
 import yaml
 from gymnasium import spaces
 
-from frictiongym.envs.config import ConfigError, Node, load_yaml
+from frictiongym.envs.config import ConfigError, Node, deep_merge, load_yaml
 from frictiongym.envs.plants.spec import RANDOMIZATION_KEYS
 from frictiongym.envs.records import atomic_text, atomic_write, command_line, csv_text
 from frictiongym.envs.scenario import load_scenario
@@ -110,14 +111,6 @@ def config_names() -> list[str]:
     return preset_names("agents")
 
 
-def _deep_merge(base: Any, over: Any) -> Any:
-    """over merged into base, mappings key by key (new keys allowed: the checked reader rejects unknown
-    ones, naming them, so a typo is still an error)."""
-    if isinstance(base, dict) and isinstance(over, dict):
-        return {**base, **{k: _deep_merge(base.get(k), v) for k, v in over.items()}}
-    return over
-
-
 def _raw_config(path: str | Path, seen: tuple[str, ...] = ()) -> tuple[dict[str, Any], str]:
     """A config file's mapping with its `extends:` chain merged in (the child's keys win)."""
     from frictiongym.envs.config import preset_path
@@ -130,7 +123,7 @@ def _raw_config(path: str | Path, seen: tuple[str, ...] = ()) -> tuple[dict[str,
     if str(parent) in seen:
         raise ConfigError("extends", f"cycle through {parent!r}", str(file))
     base, _ = _raw_config(parent, (*seen, str(parent)))
-    return _deep_merge(base, raw), str(file)
+    return deep_merge(base, raw), str(file)
 
 
 def scenario_settings(raw: dict[str, Any], scenario: str) -> dict[str, Any]:
@@ -138,8 +131,8 @@ def scenario_settings(raw: dict[str, Any], scenario: str) -> dict[str, Any]:
     `defaults`, then its scenario entry."""
     from frictiongym.envs.config import configs_dir
 
-    defaults = _deep_merge(load_yaml(configs_dir() / "agents" / "_defaults.yaml"), raw.get("defaults") or {})
-    return copy.deepcopy(_deep_merge(defaults, raw["scenarios"][scenario]))  # the caller may edit it
+    defaults = deep_merge(load_yaml(configs_dir() / "agents" / "_defaults.yaml"), raw.get("defaults") or {})
+    return copy.deepcopy(deep_merge(defaults, raw["scenarios"][scenario]))  # the caller may edit it
 
 
 def load_config(path: str | Path, scenario: str | None = None) -> list[RunConfig]:
@@ -176,7 +169,7 @@ def run_config_with(
     raw, file = _raw_config(path)
     if scenario not in (raw.get("scenarios") or {}):
         raise ConfigError("scenarios", f"no entry for scenario {scenario!r}", file)
-    entry = _deep_merge(scenario_settings(raw, scenario), overrides)
+    entry = deep_merge(scenario_settings(raw, scenario), overrides)
     if algorithm is not None and algorithm not in ALGORITHMS:
         raise ConfigError("algorithm", f"expected one of {list(ALGORITHMS)}, got {algorithm!r}", file)
     node = Node(entry, file, f"scenarios.{scenario}.")
@@ -648,11 +641,12 @@ class TrainingRun:
         out: Path,
         command: str,
         progress: bool = True,
-        parallel_validation: bool = True,
+        parallel_validation: bool = False,
     ):
         self.cfg, self.seed, self.out, self.command, self.progress = cfg, seed, Path(out), command, progress
-        # validation in a worker process on the other core (not from a daemonic pool worker, which may
-        # not have children); the results are the same either way (the same saved snapshot is evaluated)
+        # validation in a worker process on the other core (scripts/train.py's runs), with the same results
+        # as in turn (the same saved snapshot is evaluated). The worker is spawned: a calling script needs
+        # multiprocessing's `if __name__ == "__main__":` guard; a daemonic pool worker may not have children.
         self.parallel_validation = parallel_validation and not mp.current_process().daemon
         self.pool: ProcessPoolExecutor | None = None
         self.pending: list[_Pending] = []
@@ -706,7 +700,13 @@ class TrainingRun:
         while self.pending and (block or self.pending[0].result.done()):
             p = self.pending.pop(0)
             t0 = time.monotonic()
-            m = p.result.result()
+            try:
+                m = p.result.result()
+            except BrokenProcessPool:  # the worker died (e.g. killed): validate here from now on
+                print(f"{self.name}: the validation worker stopped; validating in turn", file=sys.stderr)
+                self.parallel_validation, self.pool = False, None
+                snap = p.snapshot
+                m = evaluate_snapshot(self.cfg, self.name, snap.model, snap.normalizer, self.episodes)
             self.eval_s += time.monotonic() - t0
             self._record(p.meta, p.snapshot, m)
 
@@ -814,10 +814,10 @@ class TrainingRun:
                     progress_bar=self.progress,
                     tb_log_name="run",
                 )
-                evaluated = [r["step"] for r in self.history] + [p.meta["step"] for p in self.pending]
-                final = Snapshot.of(model) if evaluated and evaluated[-1] == model.num_timesteps else None
-                self.checkpoint(model, final or self.validate(model))  # the final model evaluated too
-                self.collect(block=True)
+                self.collect(block=True)  # so that a pending evaluation is always the checkpoint's model
+                evaluated = self.history and self.history[-1]["step"] == model.num_timesteps
+                self.checkpoint(model, Snapshot.of(model) if evaluated else self.validate(model))
+                self.collect(block=True)  # the final model's evaluation
                 self.write_state(model)
         finally:
             if self.pool is not None:
@@ -926,10 +926,11 @@ def export_model(run: Path, dest: Path) -> Path:
 
 
 def train_one(args: tuple[RunConfig, int, str, str, bool, bool]) -> dict[str, Any]:
-    """One run (picklable for a process pool): (config, seed, out dir, command, resume, progress)."""
+    """One run (picklable for a process pool): (config, seed, out dir, command, resume, progress), its
+    validation beside it."""
     cfg, seed, out, command, resume, progress = args
     with contextlib.redirect_stdout(sys.stderr) if not progress else contextlib.nullcontext():
-        return TrainingRun(cfg, seed, Path(out), command, progress).train(resume)
+        return TrainingRun(cfg, seed, Path(out), command, progress, parallel_validation=True).train(resume)
 
 
 def train_many(

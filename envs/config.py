@@ -113,6 +113,14 @@ def load_yaml(name_or_path: str | Path, kind: str = "plants") -> dict[str, Any]:
     return data
 
 
+def deep_merge(base: Any, over: Any) -> Any:
+    """over merged into base as a new value, mappings key by key (over wins elsewhere). No key checks:
+    the checked readers (Node) reject unknown keys, naming them; merge() checks them here."""
+    if isinstance(base, Mapping) and isinstance(over, Mapping):
+        return {**base, **{k: deep_merge(base.get(k), v) for k, v in over.items()}}
+    return copy.deepcopy(over)
+
+
 def merge(base: Mapping[str, Any], overrides: Any, prefix: str = "", source: str = "") -> dict[str, Any]:
     """Deep-merge overrides into a copy of base. Keys must exist in base (typos are errors)."""
     if overrides is None:

@@ -20,7 +20,17 @@ from typing import Any
 import numpy as np
 
 from . import recorded
-from .config import ConfigError, Node, interval, load_yaml, merge, number, preset_names, preset_path
+from .config import (
+    ConfigError,
+    Node,
+    deep_merge,
+    interval,
+    load_yaml,
+    merge,
+    number,
+    preset_names,
+    preset_path,
+)
 from .friction import BRISTLE_MODELS, FRICTION_MODELS, FrictionDrift
 from .metrics import METRIC_NAMES
 from .plants import PlantSpec, plant_names, plant_spec
@@ -410,13 +420,6 @@ def _drift(c: Node) -> FrictionDrift | None:
     )
 
 
-def _deep_update(base: dict, extra: Mapping) -> dict:
-    """base updated recursively with extra (no key checks: the reader checks them)."""
-    for k, v in extra.items():
-        base[k] = _deep_update(dict(base.get(k) or {}), v) if isinstance(v, Mapping) else v
-    return base
-
-
 def _new_reference(base: dict, extra: Mapping) -> dict | None:
     """extra's reference if it changes the reference type (it then replaces base's whole), else None."""
     ref = extra.get("reference")
@@ -440,7 +443,7 @@ def scenario_config(name_or_path: str | Path, _chain: tuple[str, ...] = ()) -> d
         raise ConfigError("extends", f"expected another scenario's name, not a cycle: {parent!r}", path.name)
     base = scenario_config(parent, (*_chain, path.stem))
     ref = _new_reference(base, data)
-    out = _deep_update(base, data)
+    out = deep_merge(base, data)
     if ref is not None:
         out["reference"] = ref
     return out
@@ -493,7 +496,7 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
     plant_ov = c["plant_overrides"]
     if not isinstance(plant_ov, Mapping):
         raise c.error("plant_overrides", f"expected a mapping of plant keys, got {plant_ov!r}")
-    plant_ov = _deep_update(copy.deepcopy(dict(plant_ov)), plant_extra)
+    plant_ov = deep_merge(dict(plant_ov), plant_extra)
     if c.get("control_period_s") is not None:  # else the plant preset's own period
         period = c.positive("control_period_s", 1.0)
         plant_ov["sampling"] = {**plant_ov.get("sampling", {}), "control_period_s": period}

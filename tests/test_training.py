@@ -3,6 +3,7 @@ the residual's zero start, asymmetric actor-critic, registry entries, and the si
 
 from __future__ import annotations
 
+import csv
 import json
 import subprocess
 import sys
@@ -83,10 +84,13 @@ def write_config(tmp_path: Path, algo: str, steps: int = 256, **extra) -> Path:
     return path
 
 
-def train(tmp_path: Path, algo: str, out: str = "run", resume: bool = False, **kw) -> tuple[dict, Path]:
+def train(
+    tmp_path: Path, algo: str, out: str = "run", resume: bool = False, parallel: bool = False, **kw
+) -> tuple[dict, Path]:
     (cfg,) = load_config(write_config(tmp_path, algo, **kw))
     folder = tmp_path / out
-    return TrainingRun(cfg, 0, folder, "pytest", progress=False).train(resume), folder
+    run = TrainingRun(cfg, 0, folder, "pytest", progress=False, parallel_validation=parallel)
+    return run.train(resume), folder
 
 
 @pytest.mark.slow
@@ -109,12 +113,12 @@ def test_every_algorithm_trains_and_its_saved_model_acts_identically(tmp_path, a
 def test_resume_continues_the_same_run(tmp_path):
     """--resume keeps the history, the step count and the training-seed schedule, and trains to the new
     total; without --resume a finished folder is refused."""
-    first, folder = train(tmp_path, "SAC", steps=256)
+    first, folder = train(tmp_path, "SAC", steps=256, parallel=True)
     episodes_before = json.loads((folder / "checkpoint" / "state.json").read_text())["episodes"]
     assert episodes_before == [2]  # 256 steps of 250-step episodes: the second episode is running
     with pytest.raises(FileExistsError, match="finished run"):
         train(tmp_path, "SAC", steps=512)
-    second, _ = train(tmp_path, "SAC", steps=512, resume=True)
+    second, _ = train(tmp_path, "SAC", steps=512, resume=True, parallel=True)
     assert second["steps"] == 512 and second["wall_time_s"] >= first["wall_time_s"]
     steps = [int(r.split(",")[0]) for r in (folder / "validation.csv").read_text().splitlines()[1:]]
     assert steps[:2] == [128, 256] and steps[-1] == 512
@@ -122,6 +126,23 @@ def test_resume_continues_the_same_run(tmp_path):
     # the resumed run starts a fresh episode (SB3 resets the env after loading) with the schedule's next
     # seed: episodes 3 (steps 257-506) and 4; a restarted schedule would have counted 2
     assert state["episodes"] == [4]
+
+
+@pytest.mark.slow
+def test_an_evaluation_running_at_the_stop_is_rerun_on_resume(tmp_path):
+    """A checkpoint written while its own model's evaluation was still running (the state lists it as
+    pending) resumes by evaluating the checkpoint's model: the same row as the one it would have had."""
+    _, folder = train(tmp_path, "SAC", steps=300, parallel=True)  # evaluated at 128, 256 and its end
+    path = folder / "checkpoint" / "state.json"
+    state = json.loads(path.read_text())
+    last = state["history"].pop()  # as if the run had stopped before this evaluation came back
+    state["pending"] = [{k: last[k] for k in ("step", "gradient_steps", "wall_s", "train_s")}]
+    path.write_text(json.dumps(state))
+    (folder / "manifest.yaml").unlink()
+    train(tmp_path, "SAC", steps=384, resume=True)
+    rows = list(csv.DictReader((folder / "validation.csv").open()))
+    assert [int(r["step"]) for r in rows] == [128, 256, 300, 384]
+    assert float(rows[2]["main"]) == last["main"] and float(rows[2]["effort_rms"]) == last["effort_rms"]
 
 
 @pytest.mark.slow
@@ -501,8 +522,6 @@ def test_bench_training_prints_speed_time_to_beat_and_ratios(tmp_path):
         timeout=600,
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
-    import csv
-
     rows = list(csv.DictReader((tmp_path / "out" / config.stem / SCENARIO / "bench_training.csv").open()))
     assert sorted(r["setup"] for r in rows) == ["four", "one"]
     for r in rows:
