@@ -95,11 +95,14 @@ def train(
 
 @pytest.mark.slow
 @pytest.mark.parametrize("algo", ["SAC", "TD3", "TQC", "CrossQ", "PPO", "RecurrentPPO"])
-def test_every_algorithm_trains_and_its_saved_model_acts_identically(tmp_path, algo):
-    """A few hundred steps per algorithm; the model folder loads through the registry and reproduces the
-    validation evaluation that selected it, to the last bit (same actions on the same episodes)."""
-    manifest, folder = train(tmp_path, algo)
+@pytest.mark.parametrize("n_envs", [1, 2])
+def test_every_algorithm_trains_and_its_saved_model_acts_identically(tmp_path, algo, n_envs):
+    """A few hundred steps per algorithm, on one env and on two batched ones; the model folder loads
+    through the registry and reproduces the validation evaluation that selected it, to the last bit
+    (same actions on the same episodes)."""
+    manifest, folder = train(tmp_path, algo, n_envs=n_envs)
     assert manifest["algorithm"] == algo and manifest["steps"] >= 256 and manifest["base_controller"] == "PID"
+    assert manifest["config"]["n_envs"] == n_envs
     for f in ("model.zip", "manifest.yaml", "validation.csv", "training_curve.png"):
         assert (folder / f).is_file(), f
     c = registry.make(manifest["name"], (str(folder),))
@@ -281,9 +284,12 @@ def test_update_to_data_sets_sb3s_schedule(ratio, n_envs, schedule):
 
 def test_asymmetric_actor_ignores_the_privileged_block(tmp_path):
     """With privileged_critic the critic reads ground truth, the actor does not: changing the privileged
-    entries leaves the action unchanged, changing a sensor entry does not."""
-    (cfg,) = load_config(write_config(tmp_path, "SAC", observation={"privileged_critic": True}))
-    model = build_model(cfg, make_training_env(cfg, 0), 0, None)
+    entries leaves the action unchanged, changing a sensor entry does not (on batched training envs, whose
+    observations carry the privileged block)."""
+    (cfg,) = load_config(write_config(tmp_path, "SAC", n_envs=2, observation={"privileged_critic": True}))
+    venv = make_training_env(cfg, 0)
+    model = build_model(cfg, venv, 0, None)
+    model.learn(64)  # the critic trains on the batched envs' privileged observations
     import torch
 
     with torch.no_grad():  # give the actor a non-zero output first
