@@ -560,15 +560,20 @@ class _Pending:
 _EVAL_ENVS = EnvCache()  # the validation envs of this process (a worker's, or the training process')
 
 
-def evaluate_snapshot(
-    cfg: RunConfig, name: str, model: bytes, normalizer: bytes | None, episodes: list
-) -> dict[str, float]:
+def evaluate_snapshot(cfg: RunConfig, name: str, snap: Snapshot, episodes: list) -> dict[str, float]:
     """Metric means of a saved model on the episodes through the leaderboard's loop (evaluate_controller),
-    deterministic, its observation statistics frozen: in the validation worker or in the training process,
-    the same numbers (picklable for the worker). The global random generators are left as they were (SB3's
-    load reseeds them), so validation in the training process does not change the training."""
+    deterministic, its observation statistics frozen (SB3Policy): in the validation worker or in the
+    training process, the same numbers (picklable for the worker). The global random generators are left
+    as they were (SB3's load reseeds them), so validation in the training process does not change the
+    training."""
+    from .registry import make
+
     with _generators_kept():
-        return _evaluate_snapshot(cfg, name, model, normalizer, episodes)
+        model = algorithm_class(cfg.algorithm).load(io.BytesIO(snap.model), device="cpu")
+        norm = pickle.loads(snap.normalizer) if snap.normalizer is not None else None
+        base = make(cfg.base) if cfg.base is not None else None
+        policy = SB3Policy(model, (), name, inputs=cfg.inputs, base=base, alpha=cfg.alpha, normalizer=norm)
+        return evaluate_controller(policy, episodes, _EVAL_ENVS)
 
 
 @contextlib.contextmanager
@@ -585,20 +590,6 @@ def _generators_kept() -> Any:
         random.setstate(saved[0])
         np.random.set_state(saved[1])
         torch.set_rng_state(saved[2])
-
-
-def _evaluate_snapshot(
-    cfg: RunConfig, name: str, model: bytes, normalizer: bytes | None, episodes: list
-) -> dict[str, float]:
-    from .registry import make
-
-    loaded = algorithm_class(cfg.algorithm).load(io.BytesIO(model), device="cpu")
-    norm = pickle.loads(normalizer) if normalizer is not None else None
-    if norm is not None:
-        norm.training = False
-    base = make(cfg.base) if cfg.base is not None else None
-    policy = SB3Policy(loaded, (), name, inputs=cfg.inputs, base=base, alpha=cfg.alpha, normalizer=norm)
-    return evaluate_controller(policy, episodes, _EVAL_ENVS)
 
 
 def _callback_class():
@@ -678,7 +669,7 @@ class TrainingRun:
         here); collect() records it. Returns the snapshot (the checkpoint's model)."""
         t0 = time.monotonic()
         snap = Snapshot.of(model)
-        job = (self.cfg, self.name, snap.model, snap.normalizer, self.episodes)
+        job = (self.cfg, self.name, snap, self.episodes)
         if self.parallel_validation:
             if self.pool is None:
                 self.pool = ProcessPoolExecutor(
@@ -705,8 +696,7 @@ class TrainingRun:
             except BrokenProcessPool:  # the worker died (e.g. killed): validate here from now on
                 print(f"{self.name}: the validation worker stopped; validating in turn", file=sys.stderr)
                 self.parallel_validation, self.pool = False, None
-                snap = p.snapshot
-                m = evaluate_snapshot(self.cfg, self.name, snap.model, snap.normalizer, self.episodes)
+                m = evaluate_snapshot(self.cfg, self.name, p.snapshot, self.episodes)
             self.eval_s += time.monotonic() - t0
             self._record(p.meta, p.snapshot, m)
 
@@ -794,8 +784,7 @@ class TrainingRun:
             self.wall_before, self.eval_s = state["wall_s"], state.get("eval_s", 0.0)
             for meta in state.get("pending", []):  # the checkpoint's model, not evaluated before the stop
                 snap = Snapshot.read(ck)
-                m = evaluate_snapshot(cfg, self.name, snap.model, snap.normalizer, self.episodes)
-                self._record(meta, snap, m)
+                self._record(meta, snap, evaluate_snapshot(cfg, self.name, snap, self.episodes))
         else:
             if cfg.normalize_observation or cfg.normalize_reward:
                 venv = VecNormalize(
