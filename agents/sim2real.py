@@ -370,7 +370,8 @@ def model_error(
     from tqdm import tqdm
 
     from frictiongym.envs import experiments as ex
-    from frictiongym.envs.identification import apply_identified, identify_simulated
+    from frictiongym.envs.identification import identify_simulated
+    from frictiongym.envs.plants.identified import IdentifiedFriction, apply_identified
     from frictiongym.envs.plants.params import spec_with
 
     from .evaluate import EnvCache, run_episode
@@ -389,7 +390,7 @@ def model_error(
         values = {k: v for k, v in fid.values().items() if k not in fid.unidentified}
         # the scenario's plant with the identified friction (the friction_identified mechanism), checked as
         # a plant's parameters are; a design model, so the randomisation ranges are not re-checked
-        identified = apply_identified(sc.spec, values)
+        identified = apply_identified(sc.spec, IdentifiedFriction.from_values(values))
         EpisodeParams.nominal(identified).validate(identified)
         true = spec_with(sc.spec, EpisodeParams.draw(sc.spec, seed))
         for name in controllers:

@@ -18,6 +18,7 @@ import numpy as np
 
 from .identification import Log
 from .plants import plant_module, plant_spec
+from .plants.identified import drive_friction, speed_ratios
 from .plants.params import EpisodeParams, spec_with
 from .plants.sim import PlantSim
 from .plants.spec import PlantSpec
@@ -98,8 +99,6 @@ class Rig:
     # ------------------------------------------------------------------ drive-referred nominal numbers
     def inertia(self) -> float:
         """Drive-referred inertia at low frequency (kg·m²): every joint turns with the drive."""
-        from .identification import speed_ratios
-
         r = speed_ratios(self.spec)
         return sum(j.inertia * r[j.name] ** 2 for j in self.spec.joints)
 
@@ -194,8 +193,6 @@ def protocol(plant: str | PlantSpec) -> Protocol:
     linear bristles). On the flexible servo the weak shaft (resonance near 4 rad/s, lightly damped)
     needs 12 s holds, and a ramp breaks the motor shaft away while the load still sticks (it measures
     the motor side only): no breakaway there, the static levels come from the holds."""
-    from .identification import drive_friction
-
     spec = plant_spec(plant) if isinstance(plant, str) else plant
     plant = spec.name
     nominal = drive_friction(spec)

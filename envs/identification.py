@@ -30,6 +30,8 @@ import numpy as np
 from scipy import optimize, stats
 
 from .config import ConfigError
+from .plants.identified import drive_friction
+from .plants.spec import PlantSpec
 from .records import atomic_text
 from .units import deg_to_rad
 
@@ -328,124 +330,6 @@ def fit_static(
     return est
 
 
-# ------------------------------------------------------------------------------------------- the truth
-@dataclass(frozen=True)
-class DriveFriction:
-    """Drive-referred steady-state friction in command units (magnitudes) and rad/s: what the friction
-    experiments measure, computed from a PlantSpec (the truth of a simulated plant)."""
-
-    coulomb_pos: float
-    coulomb_neg: float
-    static_pos: float
-    static_neg: float
-    stribeck_velocity: float
-    viscous: float
-    sigma0: float  # drive-referred bristle stiffness (cu/rad)
-
-
-def speed_ratios(spec: Any) -> dict[str, float]:
-    """Each joint's steady-state speed per drive speed: belt ratios, 1 for spring-coupled joints."""
-    belt = spec.kinematic_ratios()
-    r0 = belt.get(spec.actuator_joint, 1.0)
-    return {j.name: belt.get(j.name, 1.0) / r0 for j in spec.joints}
-
-
-def drive_friction(spec: Any) -> DriveFriction:
-    """The truth: u_ss(v)·G = Σ_j r_j·(sgn(v)·g_j(r_j·v) - b_j) + Σ_j (σ2_j + c_j)·r_j²·v over the joints
-    (speed ratio r_j)."""
-    r, g = speed_ratios(spec), spec.actuator_gain
-    fr = [(j, r[j.name]) for j in spec.joints if j.friction is not None]
-    if not fr:
-        raise ConfigError("friction", f"plant {spec.name} has no friction to identify")
-    f = [(j.friction, rj) for j, rj in fr]
-    drops = [rj * (p.fs - p.fc) for p, rj in f]
-    # the Stribeck velocity of the lumped map: exact for one friction joint or equal vs_j/r_j; otherwise
-    # the drop-weighted mean (nan without a Stribeck drop, where it does not matter)
-    vs = (
-        sum(d * p.vs / rj for d, (p, rj) in zip(drops, f, strict=True)) / sum(drops)
-        if sum(drops) > 0
-        else math.nan
-    )
-    return DriveFriction(
-        stribeck_velocity=vs,
-        coulomb_pos=sum(rj * (p.fc - p.bias) for p, rj in f) / g,
-        coulomb_neg=sum(rj * (p.fc + p.bias) for p, rj in f) / g,
-        static_pos=sum(rj * (p.fs - p.bias) for p, rj in f) / g,
-        static_neg=sum(rj * (p.fs + p.bias) for p, rj in f) / g,
-        viscous=sum(
-            (j.viscous + (j.friction.sigma2 if j.friction else 0.0)) * r[j.name] ** 2 for j in spec.joints
-        )
-        / g,
-        sigma0=sum(p.sigma0 * rj**2 for p, rj in f) / g,
-    )
-
-
-def apply_identified(spec: Any, ident: dict[str, float]) -> Any:
-    """The spec with its friction replaced by identified drive-referred values (command units, rad/s):
-    coulomb_pos/neg, viscous_per_rad_s, and optionally static_pos/neg (default: the Coulomb levels),
-    stribeck_velocity_rad_s (default: the preset's) and sigma0_per_rad (default: the preset's).
-    The levels are shared among the friction joints as in the preset (a lumped measurement cannot split
-    them: the flexible servo keeps its F1 = F2 of §3.2); σ1 keeps the preset's damping ratio; joint
-    damping c_j is kept and σ2 takes the rest of the viscous slope."""
-    from dataclasses import replace
-
-    from .friction import LuGreParams
-
-    nominal, r, g = drive_friction(spec), speed_ratios(spec), spec.actuator_gain
-    fr = [j for j in spec.joints if j.friction is not None]
-    share = {
-        j.name: r[j.name] * j.friction.fc / g / (0.5 * (nominal.coulomb_pos + nominal.coulomb_neg))
-        for j in fr
-    }
-    damping = sum(j.viscous * r[j.name] ** 2 for j in spec.joints) / g
-    sigma2_total = max(ident["viscous_per_rad_s"] - damping, 0.0) * g  # N·m·s/rad at the drive
-    s0 = ident.get("sigma0_per_rad")
-    joints = []
-    for j in spec.joints:
-        if j.friction is None:
-            joints.append(j)
-            continue
-        w, rj, p = share[j.name], r[j.name], j.friction
-        sigma0 = p.sigma0 if s0 is None else s0 * g * w / rj**2
-        new = LuGreParams.from_levels(
-            fc_pos=w * ident["coulomb_pos"] * g / rj,
-            fc_neg=w * ident["coulomb_neg"] * g / rj,
-            fs_pos=w * ident.get("static_pos", ident["coulomb_pos"]) * g / rj,
-            fs_neg=w * ident.get("static_neg", ident["coulomb_neg"]) * g / rj,
-            vs=ident.get("stribeck_velocity_rad_s", nominal.stribeck_velocity) * rj
-            if "stribeck_velocity_rad_s" in ident or math.isfinite(nominal.stribeck_velocity)
-            else p.vs,
-            sigma0=sigma0,
-            sigma1=p.sigma1 * math.sqrt(sigma0 / p.sigma0),
-            sigma2=w * sigma2_total / rj**2,
-        )
-        joints.append(replace(j, friction=new))
-    return replace(spec, joints=tuple(joints))
-
-
-IDENTIFIED_KEYS = ("coulomb_pos", "coulomb_neg", "viscous_per_rad_s")  # required in friction_identified
-OPTIONAL_KEYS = ("static_pos", "static_neg", "stribeck_velocity_rad_s", "sigma0_per_rad")
-
-
-def identified_section(cfg: Any) -> dict[str, float] | None:
-    """The preset's optional `friction_identified` section (scripts/identify.py writes it), checked: the
-    Coulomb levels and viscous slope are required; static levels default to the Coulomb ones, the Stribeck
-    velocity and σ0 to the preset's."""
-    node = cfg.section("friction_identified", optional=True)
-    if not list(node.keys()):
-        return None
-    out = {k: node.positive(k) for k in IDENTIFIED_KEYS}
-    out |= {k: node.positive(k) for k in OPTIONAL_KEYS if k in node}
-    for d in ("pos", "neg"):
-        if out.get(f"static_{d}", math.inf) < out[f"coulomb_{d}"]:
-            raise node.error(
-                f"static_{d}", f"{out[f'static_{d}']} is below coulomb_{d} {out[f'coulomb_{d}']}"
-            )
-    node.get("source")  # provenance, kept in the file
-    node.done()
-    return out
-
-
 # ------------------------------------------------------------------------------------------- from logs
 def resolution(log: Log) -> float:
     """The position (or speed) sensor's resolution as the log shows it: the smallest non-zero change."""
@@ -548,7 +432,7 @@ class FrictionId:
     unidentified: set[str] = field(default_factory=set)  # estimated but not to be trusted (see notes)
 
     def values(self) -> dict[str, float]:
-        """The override values (IDENTIFIED_KEYS, and sigma0_per_rad if identified)."""
+        """The override values (IdentifiedFriction's fields; sigma0_per_rad if identified)."""
         e = self.estimates
         out = {
             "coulomb_pos": e["coulomb_pos"].value,
@@ -640,7 +524,7 @@ def identify_simulated(logs: dict[str, Log], p: Any) -> FrictionId:
     )
 
 
-def truth_values(spec: Any) -> dict[str, float]:
+def truth_values(spec: PlantSpec) -> dict[str, float]:
     """The identified keys' true values of a simulated plant (drive_friction), for recovery checks."""
     t = drive_friction(spec)
     return {

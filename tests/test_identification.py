@@ -15,9 +15,7 @@ import frictiongym.envs  # noqa: F401  (registers the envs)
 from frictiongym.envs import experiments as ex
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.identification import (
-    apply_identified,
     coulomb_viscous_fit,
-    drive_friction,
     fit_static,
     fit_step,
     identify_coulomb_viscous,
@@ -34,6 +32,7 @@ from frictiongym.envs.identification import (
 )
 from frictiongym.envs.identify_workflow import document_lines, document_table, friction_from_document
 from frictiongym.envs.plants import plant_spec
+from frictiongym.envs.plants.identified import IdentifiedFriction, apply_identified, drive_friction
 from frictiongym.envs.units import rad_per_count
 from frictiongym.scripts.identify import main
 
@@ -185,7 +184,7 @@ def test_identified_values_round_trip_through_the_plant():
         spec = ex.Rig.of(plant, 7, True).spec
         truth = truth_values(spec)
         ident = {k: v for k, v in truth.items() if math.isfinite(v)}
-        again = drive_friction(apply_identified(spec, ident))
+        again = drive_friction(apply_identified(spec, IdentifiedFriction.from_values(ident)))
         want = drive_friction(spec)
         for k in ("coulomb_pos", "coulomb_neg", "static_pos", "static_neg", "viscous", "sigma0"):
             # the simulator's LuGre keeps static levels exact; Coulomb levels within half the difference

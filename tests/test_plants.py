@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 from frictiongym.agents.reproduce.iurian2005 import CONFIGS as M220_CONFIGS
+from frictiongym.envs.config import ConfigError
 from frictiongym.envs.identification import two_point_step_id
 from frictiongym.envs.plants import flexible_servo, kang_robot, m220, plant_spec
+from frictiongym.envs.plants.identified import drive_friction
 
 
 @pytest.mark.parametrize("name", list(M220_CONFIGS))
@@ -71,3 +73,33 @@ def test_kang_resolved_gain_reproduces_printed_bounds():
     b = kang_robot.pd_bounds()
     assert b["theta_H_deg"] == pytest.approx(6.97, abs=0.05)
     assert b["theta_L_deg"] == pytest.approx(-8.64, abs=0.05)
+
+
+@pytest.mark.parametrize(
+    ("values", "field"),
+    [
+        ({"coulomb_pos": 0.1, "coulomb_neg": 0.1}, "viscous_per_rad_s"),  # a required value missing
+        ({"coulomb_pos": 0.1, "coulomb_neg": -0.1, "viscous_per_rad_s": 0.01}, "coulomb_neg"),
+        (
+            {"coulomb_pos": 0.1, "coulomb_neg": 0.1, "viscous_per_rad_s": 0.01, "static_pos": 0.05},
+            "static_pos",
+        ),
+        ({"coulomb_pos": 0.1, "coulomb_neg": 0.1, "viscous_per_rad_s": 0.01, "stiction": 0.2}, "stiction"),
+    ],
+)
+def test_identified_friction_errors_name_the_value(values, field):
+    with pytest.raises(ConfigError) as e:
+        plant_spec("m220", {"friction_identified": values})
+    assert e.value.field.endswith(field)
+    assert "m220.yaml" in str(e.value)
+
+
+def test_identified_friction_replaces_the_presets_drive_referred_levels():
+    """Identified Coulomb levels and viscous slope are what the plant's drive then shows (static levels
+    default to the Coulomb ones: no Stribeck drop)."""
+    values = {"coulomb_pos": 0.2, "coulomb_neg": 0.15, "viscous_per_rad_s": 0.003}
+    got = drive_friction(plant_spec("m220", {"friction_identified": values}))
+    assert got.coulomb_pos == pytest.approx(0.2, rel=0.02)
+    assert got.coulomb_neg == pytest.approx(0.15, rel=0.02)
+    assert got.static_pos == pytest.approx(0.2, rel=1e-9)
+    assert got.viscous == pytest.approx(0.003, rel=1e-9)

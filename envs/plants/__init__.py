@@ -16,7 +16,7 @@ from typing import Any
 
 from ..config import ConfigError, Node, load_yaml, merge, plant_names, preset_path
 from ..friction import BRISTLE_MODELS, FRICTION_MODELS, check_numerics
-from ..identification import apply_identified, identified_section
+from .identified import IdentifiedFriction, apply_identified
 from .spec import JointSpec, PlantSpec
 
 __all__ = ["PlantSpec", "plant_config", "plant_module", "plant_names", "plant_spec"]
@@ -65,7 +65,7 @@ def plant_spec(
     module = plant_module(cfg.choice("plant", plant_names()))
     cfg.get("description")
     spec = module.build(cfg, friction_model)
-    identified = identified_section(cfg)
+    identified = IdentifiedFriction.from_section(cfg)
     if identified is not None:  # friction identified from data (scripts/identify.py) replaces the document's
         spec = apply_identified(spec, identified)
     cfg.done()
