@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .identification import Log
+from frictiongym.agents.lab.identification import Log
+
 from .plants import plant_module, plant_spec
 from .plants.identified import drive_friction, speed_ratios
 from .plants.params import EpisodeParams, spec_with

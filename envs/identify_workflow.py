@@ -16,9 +16,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from . import experiments as ex
-from .config import configs_dir
-from .identification import (
+from frictiongym.agents.lab.identification import (
     IDENTIFIABLE,
     Estimate,
     FrictionId,
@@ -34,6 +32,9 @@ from .identification import (
     two_point_step_id,
     write_log,
 )
+
+from . import experiments as ex
+from .config import configs_dir
 from .plants import plant_config, plant_spec
 from .records import atomic_text, atomic_write, command_line, package_version
 
@@ -78,7 +79,7 @@ def _plot_static(fid: FrictionId, unit: str, path: Path, truth: dict[str, float]
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .identification import static_friction_model
+    from frictiongym.agents.lab.identification import static_friction_model
 
     v = fid.values()
     fig, ax = plt.subplots(figsize=(6.5, 4))
@@ -389,7 +390,7 @@ def recovery(plants: list[str], draws: int) -> tuple[str, dict[str, dict[str, li
     quantisation on): the relative error of every identified parameter. Returns a markdown table."""
     from tqdm import tqdm
 
-    from .identification import identify_simulated
+    from frictiongym.agents.lab.identification import identify_simulated
 
     errors: dict[str, dict[str, list[float]]] = {}
     for plant in plants:

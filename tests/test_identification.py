@@ -1,4 +1,5 @@
-"""Identification (envs/identification.py, experiments.py, identify_workflow.py, scripts/identify.py): fits on
+"""Identification (agents/lab/identification.py, experiments.py, identify_workflow.py, scripts/identify.py):
+fits on
 synthetic data with known answers, the M220 document's numbers, CSV round trips into an env, malformed
 logs, and recovery of randomised simulated plants."""
 
@@ -12,9 +13,7 @@ import pytest
 import yaml
 
 import frictiongym.envs  # noqa: F401  (registers the envs)
-from frictiongym.envs import experiments as ex
-from frictiongym.envs.config import ConfigError
-from frictiongym.envs.identification import (
+from frictiongym.agents.lab.identification import (
     coulomb_viscous_fit,
     fit_static,
     fit_step,
@@ -30,6 +29,8 @@ from frictiongym.envs.identification import (
     two_point_step_id,
     write_log,
 )
+from frictiongym.envs import experiments as ex
+from frictiongym.envs.config import ConfigError
 from frictiongym.envs.identify_workflow import document_lines, document_table, friction_from_document
 from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.plants.identified import IdentifiedFriction, apply_identified, drive_friction

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
+from frictiongym.agents.lab.identification import two_point_step_id
 from frictiongym.agents.reproduce.iurian2005 import CONFIGS as M220_CONFIGS
 from frictiongym.envs.config import ConfigError
-from frictiongym.envs.identification import two_point_step_id
 from frictiongym.envs.plants import flexible_servo, kang_robot, m220, plant_spec
 from frictiongym.envs.plants.identified import drive_friction
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from frictiongym.envs.identification import two_point_step_id
+from frictiongym.agents.lab.identification import two_point_step_id
 from frictiongym.envs.plants import m220, plant_spec
 
 from . import Section, row, save_figure

@@ -1,5 +1,6 @@
 """Friction and plant identification from measured data (seed 000 part 2, generalised), on hardware logs or
-on the simulator: experiment logs, fits with 95 % confidence intervals, and the override the envs load.
+on the simulator: experiment logs and fits with 95 % confidence intervals, whose values fill the plants'
+override (envs/plants/identified.py).
 
 Units: time s, angle rad, speed rad/s, command in the plant's command unit (V or N·m, "cu"). Friction is
 identified as the drive-referred steady-state command u_ss(v) that holds a speed v,
@@ -29,11 +30,11 @@ from typing import Any
 import numpy as np
 from scipy import optimize, stats
 
-from .config import ConfigError
-from .plants.identified import drive_friction
-from .plants.spec import PlantSpec
-from .records import atomic_text
-from .units import deg_to_rad
+from frictiongym.envs.config import ConfigError
+from frictiongym.envs.plants.identified import drive_friction
+from frictiongym.envs.plants.spec import PlantSpec
+from frictiongym.envs.records import atomic_text
+from frictiongym.envs.units import deg_to_rad
 
 # What each experiment can and cannot identify (the docs and the report print this table).
 IDENTIFIABLE = {
