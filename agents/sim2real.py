@@ -369,8 +369,8 @@ def model_error(
     seed, main metric."""
     from tqdm import tqdm
 
+    from frictiongym.agents.lab import experiments as ex
     from frictiongym.agents.lab.identification import identify_simulated
-    from frictiongym.envs import experiments as ex
     from frictiongym.envs.plants.identified import IdentifiedFriction, apply_identified
     from frictiongym.envs.plants.params import spec_with
 

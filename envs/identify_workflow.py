@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from frictiongym.agents.lab import experiments as ex
 from frictiongym.agents.lab.identification import (
     IDENTIFIABLE,
     Estimate,
@@ -33,7 +34,6 @@ from frictiongym.agents.lab.identification import (
     write_log,
 )
 
-from . import experiments as ex
 from .config import configs_dir
 from .plants import plant_config, plant_spec
 from .records import atomic_text, atomic_write, command_line, package_version

@@ -13,6 +13,7 @@ import pytest
 import yaml
 
 import frictiongym.envs  # noqa: F401  (registers the envs)
+from frictiongym.agents.lab import experiments as ex
 from frictiongym.agents.lab.identification import (
     coulomb_viscous_fit,
     fit_static,
@@ -29,7 +30,6 @@ from frictiongym.agents.lab.identification import (
     two_point_step_id,
     write_log,
 )
-from frictiongym.envs import experiments as ex
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.identify_workflow import document_lines, document_table, friction_from_document
 from frictiongym.envs.plants import plant_spec

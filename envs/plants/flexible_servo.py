@@ -31,7 +31,7 @@ GAIN_RANGE_A_PER_V = (1e-4, 10.0)  # k_i = 0.25 A/V (§3.1)
 TACHO_GAIN_RANGE_V_PER_RAD_S = (1e-4, 10.0)  # k_ω = 0.1 V/(rad/s) (§3.1)
 MAX_RIPPLE_PERIODS_PER_RAD = 1e3  # commutator ripple: tens of segments per turn, not thousands per rad
 LIMIT_RANGE_V = (1e-3, 100.0)  # ±10 V signal levels (§7.1)
-# identification holds (envs/experiments.py): the references are 1 V = 10 rad/s (§4), 0.5-16 rad/s here
+# identification holds (agents/lab/experiments.py): the references are 1 V = 10 rad/s (§4), 0.5-16 rad/s here
 IDENTIFICATION_SPEEDS_RAD_S = (0.5, 16.0)
 # a speed servo turns freely; 200 rad/s is 20 V on the 0.1 V/(rad/s) tachometers (twice the ±10 V
 # signal range, §7.1); 1e5 rad/s² is 9x what 0.25 N·m gives J1 (1.1e4)

@@ -34,7 +34,7 @@ ANGLE_RANGE_DEG = (-180.0, 180.0)
 FREQUENCY_RANGE_HZ = (1e-3, 100.0)
 KP_RANGE_NM_PER_DEG = (1e-3, 100.0)
 PRINTED_GAIN_RANGE = (0.0, 1.0)  # K_p = 0.0066, K_d = 0.0033 as printed, without units (ERRATA 001)
-# identification holds (envs/experiments.py): §6 identified friction with 0.05 deg/s ramps and
+# identification holds (agents/lab/experiments.py): §6 identified friction with 0.05 deg/s ramps and
 # regulates within degrees, so 0.5-16 deg/s
 IDENTIFICATION_SPEEDS_RAD_S = (0.0087, 0.28)
 # the §6 rotor regulates within degrees: a turn either side, 570 deg/s, 12x what the 10 N·m limit

@@ -24,7 +24,7 @@ from .spec import BeltSpec, Envelope, JointSpec, PlantSpec, SensorSpec, randomiz
 
 PULLEY_TEETH = (18, 24, 36, 72)  # SR pulley table, §2.1.3
 MAX_VOLTS = 100.0  # friction levels in volts at the amplifier input (the D/A range is ±10 V)
-# identification holds (envs/experiments.py): §2.3 held 150-40000 counts/s, i.e. 0.06-15.7 rad/s
+# identification holds (agents/lab/experiments.py): §2.3 held 150-40000 counts/s, i.e. 0.06-15.7 rad/s
 IDENTIFICATION_SPEEDS_RAD_S = (0.06, 15.7)
 # the disks turn freely (16 turns), 100 rad/s = 250k counts/s, ~20x what ±10 V gives the drive
 # (≈ 420 rad/s² on J_d)

@@ -17,12 +17,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from frictiongym.agents.lab.identification import Log
-
-from .plants import plant_module, plant_spec
-from .plants.identified import drive_friction, speed_ratios
-from .plants.params import EpisodeParams, spec_with
-from .plants.sim import PlantSim
-from .plants.spec import PlantSpec
+from frictiongym.envs.plants import plant_module, plant_spec
+from frictiongym.envs.plants.identified import drive_friction, speed_ratios
+from frictiongym.envs.plants.params import EpisodeParams, spec_with
+from frictiongym.envs.plants.sim import PlantSim
+from frictiongym.envs.plants.spec import PlantSpec
 
 
 @dataclass
@@ -47,7 +46,8 @@ class Rig:
         sim = PlantSim(spec)
         sim.reset(params, seed=seed)
         prov = [
-            f"simulated plant {spec.name}, seed {seed}, randomize {randomize} (frictiongym.envs.experiments)"
+            f"simulated plant {spec.name}, seed {seed}, randomize {randomize} "
+            "(frictiongym.agents.lab.experiments)"
         ]
         return cls(sim, spec_with(spec, params), params, prov)
 
