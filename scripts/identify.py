@@ -33,8 +33,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from frictiongym.agents.lab.identify import recovery, run
 from frictiongym.envs.config import ConfigError, plant_names
-from frictiongym.envs.identify_workflow import recovery, run
 from frictiongym.envs.records import atomic_text
 
 

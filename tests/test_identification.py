@@ -1,5 +1,4 @@
-"""Identification (agents/lab/identification.py, experiments.py, identify_workflow.py, scripts/identify.py):
-fits on
+"""Identification (agents/lab/: identification.py, experiments.py, identify.py; scripts/identify.py): fits on
 synthetic data with known answers, the M220 document's numbers, CSV round trips into an env, malformed
 logs, and recovery of randomised simulated plants."""
 
@@ -30,8 +29,8 @@ from frictiongym.agents.lab.identification import (
     two_point_step_id,
     write_log,
 )
+from frictiongym.agents.lab.identify import document_lines, document_table, friction_from_document
 from frictiongym.envs.config import ConfigError
-from frictiongym.envs.identify_workflow import document_lines, document_table, friction_from_document
 from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.plants.identified import IdentifiedFriction, apply_identified, drive_friction
 from frictiongym.envs.units import rad_per_count

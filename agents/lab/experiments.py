@@ -16,12 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from frictiongym.agents.lab.identification import Log
 from frictiongym.envs.plants import plant_module, plant_spec
 from frictiongym.envs.plants.identified import drive_friction, speed_ratios
 from frictiongym.envs.plants.params import EpisodeParams, spec_with
 from frictiongym.envs.plants.sim import PlantSim
 from frictiongym.envs.plants.spec import PlantSpec
+
+from .identification import Log
 
 
 @dataclass

@@ -16,8 +16,12 @@ from typing import Any
 import numpy as np
 import yaml
 
-from frictiongym.agents.lab import experiments as ex
-from frictiongym.agents.lab.identification import (
+from frictiongym.envs.config import configs_dir
+from frictiongym.envs.plants import plant_config, plant_spec
+from frictiongym.envs.records import atomic_text, atomic_write, command_line, package_version
+
+from . import experiments as ex
+from .identification import (
     IDENTIFIABLE,
     Estimate,
     FrictionId,
@@ -26,17 +30,15 @@ from frictiongym.agents.lab.identification import (
     fit_step,
     identify_coulomb_viscous,
     identify_lugre,
+    identify_simulated,
     read_log,
     rows_reproducing,
+    static_friction_model,
     step_through_points,
     truth_values,
     two_point_step_id,
     write_log,
 )
-
-from .config import configs_dir
-from .plants import plant_config, plant_spec
-from .records import atomic_text, atomic_write, command_line, package_version
 
 TABLE = "iurian2005_m220_friction_table.csv"
 RECOMMENDED_MIN_SPEED_COUNTS_S = 7000.0  # above the low-speed hump of rows 1-4 (stick-slip, Stribeck)
@@ -78,8 +80,6 @@ def _plot_static(fid: FrictionId, unit: str, path: Path, truth: dict[str, float]
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from frictiongym.agents.lab.identification import static_friction_model
 
     v = fid.values()
     fig, ax = plt.subplots(figsize=(6.5, 4))
@@ -390,7 +390,6 @@ def recovery(plants: list[str], draws: int) -> tuple[str, dict[str, dict[str, li
     quantisation on): the relative error of every identified parameter. Returns a markdown table."""
     from tqdm import tqdm
 
-    from frictiongym.agents.lab.identification import identify_simulated
 
     errors: dict[str, dict[str, list[float]]] = {}
     for plant in plants:
