@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from frictiongym.envs import validation
+from frictiongym.agents.lab import radau
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.friction import LuGreParams, check_numerics
 from frictiongym.envs.plants import plant_spec
@@ -67,15 +67,15 @@ def test_random_draws_are_checked_and_reproducible():
 def test_breakaway_and_presliding_match_radau(plant, joint):
     spec = plant_spec(plant)
     for d in (1, -1):
-        r = validation.breakaway(spec, joint, d)
+        r = radau.breakaway(spec, joint, d)
         assert r["simulated"] == pytest.approx(r["reference"], rel=0.02)
     p = spec.joints[spec.joint_index(joint)].friction
     # the break-away in each direction is that direction's static level, at any slow ramp rate
     for d, key in ((1, "static_pos"), (-1, "static_neg")):
         for duration in (0.5, 8.0):
-            r = validation.breakaway(spec, joint, d, duration)
+            r = radau.breakaway(spec, joint, d, duration)
             assert r["reference"] == pytest.approx(p.levels()[key], rel=0.01)
-    r = validation.presliding(spec, joint)
+    r = radau.presliding(spec, joint)
     assert r["simulated"] == pytest.approx(r["reference"], rel=0.02)
     assert 0 < r["simulated"] < 2 * p.fs / p.sigma0  # presliding is of order F/σ0
 
@@ -86,7 +86,7 @@ def test_sliding_follows_stribeck_curve_both_directions():
     forces = []
     for mult in (0.5, 1.0, 2.0, 5.0, 20.0):
         for sg in (1, -1):
-            r = validation.sliding(spec, "rotor", sg * mult * p.vs)
+            r = radau.sliding(spec, "rotor", sg * mult * p.vs)
             assert np.sign(r["velocity"]) == sg
             assert r["simulated"] == pytest.approx(r["reference"], rel=0.02)
             forces.append(abs(r["simulated"]))
@@ -97,7 +97,7 @@ def test_sliding_follows_stribeck_curve_both_directions():
 @pytest.mark.slow
 def test_stickslip_period_matches_radau():
     spec = plant_spec("kang_robot")
-    r = validation.stickslip_period(spec, "rotor", spec.document.kp_nm_per_rad, math.radians(1.0), 25.0)
+    r = radau.stickslip_period(spec, "rotor", spec.document.kp_nm_per_rad, math.radians(1.0), 25.0)
     assert r["simulated"] == pytest.approx(r["reference"], rel=0.02)
 
 
@@ -108,9 +108,9 @@ def test_implicitfast_shows_the_documented_extra_inertia():
     T = 3.0
     out = {}
     for s in (spec, fast):
-        rig = validation.Rig(s, "rotor")
+        rig = radau.Rig(s, "rotor")
         out[s.integrator] = rig.run(lambda t, th: T, 1.0)["omega"][-1]
     p = spec.joints[0].friction
-    ode = validation.lugre_ode(p, rig.J, lambda t, th: T, 1.0, t_eval=[1.0]).y[1, -1]
+    ode = radau.lugre_ode(p, rig.J, lambda t, th: T, 1.0, t_eval=[1.0]).y[1, -1]
     assert out["Euler"] == pytest.approx(ode, rel=0.002)
     assert out["implicitfast"] < 0.95 * ode

@@ -9,9 +9,9 @@ from conftest import lockstep
 
 from frictiongym.agents.classical import Southward
 from frictiongym.agents.evaluate import run_episode
+from frictiongym.agents.lab import radau
 from frictiongym.agents.reproduce import friction_phenomena as phen
 from frictiongym.agents.reproduce.kang1998 import EPISODE
-from frictiongym.envs import validation
 from frictiongym.envs.friction import KANG_STICK_BAND, MAXWELL_SLIP_LENGTHS, elements, joint_levels
 from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.servo_env import ServoEnv
@@ -34,7 +34,7 @@ def test_maxwell_slip_shares_lugres_stiffness_damping_and_static_curve():
         np.array(lengths) / lengths[1], np.array(MAXWELL_SLIP_LENGTHS) / MAXWELL_SLIP_LENGTHS[1]
     )
     for v in (0.3 * p.vs, p.vs, 5 * p.vs):  # the same steady-state friction as LuGre at every speed
-        assert validation.steady_state(p, v, "maxwell_slip") == pytest.approx(p.steady_state(v), rel=1e-12)
+        assert radau.steady_state(p, v, "maxwell_slip") == pytest.approx(p.steady_state(v), rel=1e-12)
 
 
 def test_dahl_is_lugre_without_the_stribeck_drop():
@@ -42,8 +42,8 @@ def test_dahl_is_lugre_without_the_stribeck_drop():
     (e,) = elements("dahl", p)
     assert (e.fc, e.fs, e.sigma0) == (p.fc, p.fc, p.sigma0)
     assert joint_levels("dahl", p) == (p.fc, p.fc, p.bias)
-    assert validation.steady_state(p, 0.5 * p.vs, "dahl") == pytest.approx(
-        validation.steady_state(p, 20 * p.vs, "dahl") + p.sigma2 * 19.5 * p.vs, rel=1e-12
+    assert radau.steady_state(p, 0.5 * p.vs, "dahl") == pytest.approx(
+        radau.steady_state(p, 20 * p.vs, "dahl") + p.sigma2 * 19.5 * p.vs, rel=1e-12
     )
 
 
@@ -55,11 +55,11 @@ def test_dahl_is_lugre_without_the_stribeck_drop():
 def test_native_elements_match_radau(structure, plant, joint):
     spec = plant_spec(plant, friction_model=structure)
     for d in (1, -1):
-        r = validation.breakaway(spec, joint, d)
+        r = radau.breakaway(spec, joint, d)
         assert r["simulated"] == pytest.approx(r["reference"], rel=0.02)
-    r = validation.presliding(spec, joint)
+    r = radau.presliding(spec, joint)
     assert r["simulated"] == pytest.approx(r["reference"], rel=0.02)
-    r = validation.sliding(spec, joint, 0.5 * spec.drive_friction.vs)
+    r = radau.sliding(spec, joint, 0.5 * spec.drive_friction.vs)
     assert r["simulated"] == pytest.approx(r["reference"], rel=0.02)
 
 
@@ -126,7 +126,7 @@ def test_kangs_model_drops_within_its_stick_band():
     p = plant_spec("kang_robot").drive_friction
     (e,) = elements("kang", p)
     assert (e.fc, e.fs, e.vs) == (p.fc, p.fs, KANG_STICK_BAND * p.vs)
-    assert validation.steady_state(p, 0.05 * p.vs, "kang") == pytest.approx(
+    assert radau.steady_state(p, 0.05 * p.vs, "kang") == pytest.approx(
         -(p.fc + p.sigma2 * 0.05 * p.vs) + p.bias
     )
 
@@ -195,7 +195,7 @@ def test_the_reference_only_structures_follow_their_equations():
     spec = phen.rig_spec("reset_integrator")
     p = spec.drive_friction
     assert phen.breakaway("reset_integrator", spec, 2.0) == pytest.approx(1.0, abs=0.02)
-    r = validation.reference_friction_along(
+    r = radau.reference_friction_along(
         "bliman_sorine", p, lambda t: p.vs * (1.5 + np.sin(2 * np.pi * 10 * t)), 0.3, h=1e-4
     )
     settled = slice(1000, None)  # after 0.1 s, many presliding lengths of travel

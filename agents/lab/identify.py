@@ -390,7 +390,6 @@ def recovery(plants: list[str], draws: int) -> tuple[str, dict[str, dict[str, li
     quantisation on): the relative error of every identified parameter. Returns a markdown table."""
     from tqdm import tqdm
 
-
     errors: dict[str, dict[str, list[float]]] = {}
     for plant in plants:
         p = ex.protocol(plant)

@@ -9,7 +9,7 @@ and the survey-style table of who shows what (the findings).
   decelerating at equal speed, over F_c (last cycle), at f = 1 and 10 Hz.
 - varying break-away (§1.3.3): peak friction while |ω| <= v_s under torque ramps at 0.2 and 20 F_s per s,
   over the direction's static level.
-- stick-slip (§1.3.4): the rotor pulled through a K_p spring at 1 deg/s (slip onsets, envs/validation.py).
+- stick-slip (§1.3.4): the rotor pulled through a K_p spring at 1 deg/s (slip onsets, agents/lab/radau.py).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from frictiongym.envs import validation
+from frictiongym.agents.lab import radau
 from frictiongym.envs.friction import joint_levels
 from frictiongym.envs.plants import PlantSpec, plant_spec
 from frictiongym.envs.units import deg_to_rad
@@ -29,7 +29,7 @@ from frictiongym.envs.units import deg_to_rad
 from . import Section, row, save_figure
 
 STRUCTURES = ("lugre", "dahl", "maxwell_slip", "kang", "coulomb")  # native: the simulator's plants
-REFERENCE = tuple(validation.REFERENCE_STRUCTURES)  # reference implementations only (never a plant)
+REFERENCE = tuple(radau.REFERENCE_STRUCTURES)  # reference implementations only (never a plant)
 ALL = STRUCTURES + REFERENCE
 LAG_FREQUENCIES_HZ = (1.0, 10.0)
 RAMP_RATES = (0.2, 20.0)  # F_s per second
@@ -52,11 +52,11 @@ def _levels(structure: str, spec: PlantSpec) -> tuple[float, float, float]:
     return (p.fc, p.fs, p.bias) if structure in REFERENCE else joint_levels(structure, p)
 
 
-def _run(structure: str, spec: PlantSpec, torque: validation.Torque, t_end: float) -> dict[str, np.ndarray]:
+def _run(structure: str, spec: PlantSpec, torque: radau.Torque, t_end: float) -> dict[str, np.ndarray]:
     """The rotor under T(t, θ) from rest: MuJoCo for a native structure, the reference implementation else."""
     if structure in REFERENCE:
-        return validation.reference_run(structure, spec.drive_friction, rig_inertia(spec), torque, t_end)
-    return validation.Rig(spec, "rotor").run(torque, t_end)
+        return radau.reference_run(structure, spec.drive_friction, rig_inertia(spec), torque, t_end)
+    return radau.Rig(spec, "rotor").run(torque, t_end)
 
 
 def presliding(structure: str, spec: PlantSpec) -> dict[str, np.ndarray | float]:
@@ -79,10 +79,10 @@ def lag(structure: str, spec: PlantSpec, f_hz: float) -> dict[str, np.ndarray | 
         return p.vs * (1.5 + np.sin(2 * np.pi * f_hz * t))
 
     if structure in REFERENCE:
-        r = validation.reference_friction_along(structure, p, velocity, t_end)
+        r = radau.reference_friction_along(structure, p, velocity, t_end)
         o = np.column_stack([r["t"], r["v"], -r["friction"], np.cos(2 * np.pi * f_hz * r["t"])])
     else:
-        rig = validation.Rig(spec, "rotor", velocity_servo_gain=0.8 * rig_inertia(spec) / spec.timestep)
+        rig = radau.Rig(spec, "rotor", velocity_servo_gain=0.8 * rig_inertia(spec) / spec.timestep)
         m, d = rig.model, rig.data
         out = []
         for _ in range(round(t_end / spec.timestep)):
@@ -114,7 +114,7 @@ def stickslip(structure: str, spec: PlantSpec) -> dict[str, np.ndarray | float]:
     kp, pull = spec.document.kp_nm_per_rad, deg_to_rad(1.0)
     sim = _run(structure, spec, lambda t, th: kp * (pull * t - th), 25.0)
     every = max(1, len(sim["t"]) // 50_000)  # the figure's points
-    period = validation._period(sim["t"], sim["omega"], pull)
+    period = radau._period(sim["t"], sim["omega"], pull)
     return {"t": sim["t"][::every], "omega": sim["omega"][::every], "period": period}
 
 

@@ -1,5 +1,5 @@
 """Each plant's native friction elements against an independent stiff-ODE (Radau) solution of the same
-equations (envs/validation.py), for every bristle structure (seed 000: LuGre §1.4.6, Dahl §1.4.1,
+equations (agents/lab/radau.py), for every bristle structure (seed 000: LuGre §1.4.6, Dahl §1.4.1,
 Maxwell-slip §1.4.7; seed 001's stick-slip model): break-away both ways, presliding, sliding at several
 speeds both ways, and the stick-slip period on Kang's rotor (none for Dahl, which has no drop from static
 to Coulomb level)."""
@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 
-from frictiongym.envs import validation
+from frictiongym.agents.lab import radau
 from frictiongym.envs.friction import BRISTLE_MODELS
 from frictiongym.envs.plants import plant_names, plant_spec
 from frictiongym.envs.units import deg_to_rad
@@ -37,7 +37,7 @@ def rows(_: None) -> Iterator[dict]:
             spec = plant_spec(plant, friction_model=model)
             joint, p = spec.actuator_joint, spec.drive_friction
             for d, name in ((1, "pos"), (-1, "neg")):
-                r = validation.breakaway(spec, joint, d)
+                r = radau.breakaway(spec, joint, d)
                 yield row(
                     f"{pre}.breakaway.{plant}.{name}",
                     r["reference"],
@@ -45,11 +45,11 @@ def rows(_: None) -> Iterator[dict]:
                     0.02,
                     note="N·m vs Radau",
                 )
-            r = validation.presliding(spec, joint)
+            r = radau.presliding(spec, joint)
             yield row(f"{pre}.presliding.{plant}", r["reference"], r["simulated"], 0.02, note="rad vs Radau")
             for mult in SPEEDS[model]:
                 for sg in (1, -1):
-                    r = validation.sliding(spec, joint, sg * mult * p.vs)
+                    r = radau.sliding(spec, joint, sg * mult * p.vs)
                     yield row(
                         f"{pre}.sliding.{plant}.{sg * mult:g}vs",
                         r["reference"],
@@ -58,7 +58,7 @@ def rows(_: None) -> Iterator[dict]:
                         note=f"N·m at v = {r['velocity']:.4g} rad/s vs analytic steady state",
                     )
         spec = plant_spec("kang_robot", friction_model=model)
-        r = validation.stickslip_period(spec, "rotor", spec.document.kp_nm_per_rad, deg_to_rad(1.0), 25.0)
+        r = radau.stickslip_period(spec, "rotor", spec.document.kp_nm_per_rad, deg_to_rad(1.0), 25.0)
         note = "s, Kang rotor pulled by a K_p spring at 1 deg/s, vs Radau"
         if model == "dahl":  # no stick-slip in either: the criterion is the absence of a cycle
             none = math.isnan(r["simulated"]) and math.isnan(r["reference"])

@@ -19,10 +19,10 @@ import mujoco
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .friction import LuGreParams, elements
-from .plants import PlantSpec
-from .plants.mjcf import to_mjcf
-from .plants.params import ModelIndex
+from frictiongym.envs.friction import LuGreParams, elements
+from frictiongym.envs.plants import PlantSpec
+from frictiongym.envs.plants.mjcf import to_mjcf
+from frictiongym.envs.plants.params import ModelIndex
 
 Torque = Callable[[float, float], float]  # T(t, θ) in N·m
 
