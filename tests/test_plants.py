@@ -6,27 +6,28 @@ import numpy as np
 import pytest
 
 from frictiongym.agents.lab.identification import two_point_step_id
+from frictiongym.agents.reproduce import iurian2005, kang1998, wallenborg1987
 from frictiongym.agents.reproduce.iurian2005 import CONFIGS as M220_CONFIGS
 from frictiongym.envs.config import ConfigError
-from frictiongym.envs.plants import flexible_servo, kang_robot, m220, plant_spec
+from frictiongym.envs.plants import flexible_servo, plant_spec
 from frictiongym.envs.plants.identified import drive_friction
 
 
 @pytest.mark.parametrize("name", list(M220_CONFIGS))
 def test_m220_reflected_inertia_equals_eq22(name):
     ov = M220_CONFIGS[name]
-    assert m220.reflected_inertia_sim(ov) == pytest.approx(m220.eq22_of(ov), rel=0.005)
+    assert iurian2005.reflected_inertia_sim(ov) == pytest.approx(iurian2005.eq22_of(ov), rel=0.005)
 
 
 def test_eq22_by_hand_for_default_configuration():
     # n_pd = 24, n_pl = 36: n_g' = 2, n_g = 4; J_p = 8e-6 + 3.9e-5 (SR pulley table)
-    assert m220.eq22_of() == pytest.approx(0.00040 + (8e-6 + 3.9e-5) / 4 + 0.0065 / 16)
+    assert iurian2005.eq22_of() == pytest.approx(0.00040 + (8e-6 + 3.9e-5) / 4 + 0.0065 / 16)
 
 
 def test_m220_step_passes_measured_points_and_two_point_method_recovers_a_k():
     doc = plant_spec("m220").document
     t, y = doc.step_points_t_s, doc.step_points_counts
-    sim = m220.step_counts(doc.gain_counts_per_v_s2, t, doc.step_input_v)
+    sim = iurian2005.step_counts(doc.gain_counts_per_v_s2, t, doc.step_input_v)
     assert sim == pytest.approx(y, rel=0.02)
     ident = two_point_step_id(t, tuple(sim), doc.step_input_v)
     assert ident["a"] == pytest.approx(doc.document_a_per_s, rel=0.05)
@@ -46,13 +47,13 @@ def _compare(resp, G):
 
 def test_flexible_linearisation_matches_G1_G2():
     G = np.array(flexible_servo.transfer(plant_spec("flexible_servo"), 2j * np.pi * FREQS)).T
-    _compare(flexible_servo.frf_linearized(FREQS), G)
+    _compare(wallenborg1987.frf_linearized(FREQS), G)
 
 
 def test_flexible_sine_responses_match_G1_G2():
     f = FREQS[[0, 3, 6]]
     G = np.array(flexible_servo.transfer(plant_spec("flexible_servo"), 2j * np.pi * f)).T
-    _compare(flexible_servo.frf_sine(f), G)
+    _compare(wallenborg1987.frf_sine(f), G)
 
 
 def test_flexible_transfer_from_parameters_matches_printed_3_5_3_6():
@@ -70,7 +71,7 @@ def test_kang_resolved_gain_reproduces_printed_bounds():
     lv = spec.joints[0].friction.levels()
     assert lv["static_neg"] / kp_deg == pytest.approx(6.97, abs=0.01)  # θ_H = -T_s^-/K_p, eq. 6
     assert -lv["static_pos"] / kp_deg == pytest.approx(-8.64, abs=0.01)  # θ_L = -T_s^+/K_p
-    b = kang_robot.pd_bounds()
+    b = kang1998.pd_bounds()
     assert b["theta_H_deg"] == pytest.approx(6.97, abs=0.05)
     assert b["theta_L_deg"] == pytest.approx(-8.64, abs=0.05)
 

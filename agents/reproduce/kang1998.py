@@ -6,11 +6,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from frictiongym.envs.plants import kang_robot, plant_spec
+from frictiongym.envs import units
+from frictiongym.envs.plants import plant_spec
+from frictiongym.envs.plants.sim import PlantSim
 from frictiongym.envs.suites import Episode
 from frictiongym.envs.units import rad_to_deg
 
@@ -21,6 +24,35 @@ from . import Section, published_node, row, save_figure
 EPISODE = Episode("kang_regulation_20deg", 0, False)  # θ(0) = 20 deg, set-point 0, 20 ms, nominal plant
 SOUTHWARD_PERIODS_MS = (5, 20, 40)
 DELTAS_DEG = (0.02, 0.04)
+
+
+# the plant's simulated check: §6's equilibrium-region bounds from slow P-control ramps
+
+
+def pd_bounds(rate_deg_s: float = 0.05) -> dict[str, float]:
+    """Equilibrium-region bounds (deg) from simulated P control of slow reference ramps (the §6 method):
+    the largest error held before the rotor breaks away, ramping up (θ_L) and down (θ_H). The default
+    0.05 deg/s is the document's ramp: faster ramps overshoot the bound while the rotor crosses the
+    Stribeck region (1.4 % at 0.5 deg/s)."""
+    spec = plant_spec("kang_robot")
+    period = spec.document.identification_period_s
+    spec = replace(spec, control_period=period)
+    kp = spec.document.kp_nm_per_rad
+    out = {}
+    for key, direction in (("theta_L_deg", 1.0), ("theta_H_deg", -1.0)):
+        sim = PlantSim(spec)
+        sim.reset()
+        rate = direction * units.deg_to_rad(rate_deg_s)
+        errors = []
+        for k in range(round(12.0 / rate_deg_s / period)):
+            r = rate * k * period
+            e = sim.data.qpos[sim.dofs[0]] - r
+            res = sim.step(-kp * e)
+            errors.append(e)
+            if abs(res.qvel[0]) > 20 * abs(rate):  # slipping: the bound was the error held just before
+                break
+        out[key] = units.rad_to_deg(max(errors, key=abs))
+    return out
 
 
 def plant_rows(bounds: dict[str, float]) -> Iterator[dict]:
@@ -53,7 +85,7 @@ def plant_rows(bounds: dict[str, float]) -> Iterator[dict]:
         )
 
 
-PLANT = Section("kang", "kang1998", kang_robot.pd_bounds, plant_rows)
+PLANT = Section("kang", "kang1998", pd_bounds, plant_rows)
 
 
 def cycles(result: EpisodeResult) -> float:

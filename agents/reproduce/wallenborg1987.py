@@ -8,10 +8,14 @@ from __future__ import annotations
 from collections.abc import Iterator
 from pathlib import Path
 
+import mujoco
 import numpy as np
+from mujoco import rollout
 
 from frictiongym.envs import metrics
 from frictiongym.envs.plants import flexible_servo, plant_spec
+from frictiongym.envs.plants.flexible_servo import tacho_gains
+from frictiongym.envs.plants.sim import PlantSim, linearize
 from frictiongym.envs.suites import Episode
 from frictiongym.envs.units import rad_to_deg
 
@@ -46,7 +50,7 @@ def plant_rows(_: None) -> Iterator[dict]:
     spec = plant_spec("flexible_servo")
     f = np.array(FREQS_HZ)
     G = np.array(flexible_servo.transfer(spec, 2j * np.pi * f)).T
-    for label, resp in (("lin", flexible_servo.frf_linearized(f)), ("sine", flexible_servo.frf_sine(f))):
+    for label, resp in (("lin", frf_linearized(f)), ("sine", frf_sine(f))):
         for c, name in enumerate(("G1", "G2")):
             for i, fi in enumerate(f):
                 yield row(
@@ -72,9 +76,9 @@ def plant_figures(_: None, out: Path) -> list[str]:
 
     f = np.logspace(-1, 1, 60)
     G = np.array(flexible_servo.transfer(plant_spec("flexible_servo"), 2j * np.pi * f)).T
-    L = flexible_servo.frf_linearized(f)
+    L = frf_linearized(f)
     fs = np.array(FREQS_HZ)
-    S = flexible_servo.frf_sine(fs)
+    S = frf_sine(fs)
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(6, 6), sharex=True)
     for c, name in enumerate(("G1 (u→y1)", "G2 (u→y2)")):
         a1.loglog(f, abs(G[:, c]), label=f"{name} eq. 3.2/3.3")
@@ -255,3 +259,48 @@ def findings(runs: dict[str, EpisodeResult], rows: list[dict]) -> str:
 
 
 BASELINES = Section("wallenborg", "wallenborg1987", baseline_runs, baseline_rows, figures, findings)
+
+
+# ----------------------------------------------------------------------------------------------------
+# the plant's simulated frequency responses (linearised MuJoCo model and sine inputs) for §3's Bode plot
+
+
+def frf_linearized(freqs_hz: np.ndarray) -> np.ndarray:
+    """(len(freqs), 2) complex u->y1, u->y2 responses of the linearised friction-free MuJoCo model."""
+    sim = PlantSim("flexible_servo", friction_model="none")
+    A, B = linearize(sim)
+    C = np.zeros((2, A.shape[0]))
+    C[0, sim.model.nv + sim.dofs[0]] = tacho_gains(sim.spec)[0]
+    C[1, sim.model.nv + sim.dofs[1]] = tacho_gains(sim.spec)[1]
+    return np.array([C @ np.linalg.solve(2j * np.pi * f * np.eye(len(A)) - A, B) for f in freqs_hz])
+
+
+def frf_sine(
+    freqs_hz: np.ndarray, amplitude_v: float = 0.1, settle_s: float = 80.0, periods: int = 4
+) -> np.ndarray:
+    """Same responses from simulated sine inputs (mujoco.rollout, command updated every physics step
+    with the mid-step value, so the per-step hold adds no phase lag), fitted over whole periods."""
+    sim = PlantSim("flexible_servo", friction_model="none")
+    m, h = sim.model, sim.spec.timestep
+    out = []
+    state0 = np.zeros((1, mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS)))
+    mujoco.mj_resetData(m, sim.data)
+    mujoco.mj_getState(m, sim.data, state0[0], mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    for f in freqs_hz:
+        w = 2 * np.pi * f
+        n_fit = round(periods / f / h)
+        n = round(settle_s / h) + n_fit
+        t_mid = (np.arange(n) + 0.5) * h
+        ctrl = np.zeros((1, n, m.nu))
+        ctrl[0, :, sim.idx.drive_ctrl] = amplitude_v * np.sin(w * t_mid)
+        state, _ = rollout.rollout(m, sim.data, state0, ctrl)
+        qvel0 = 1 + m.nq  # FULLPHYSICS: time, qpos, qvel, ...
+        t_end = (np.arange(n) + 1) * h
+        basis = np.stack([np.sin(w * t_end[-n_fit:]), np.cos(w * t_end[-n_fit:]), np.ones(n_fit)], axis=1)
+        resp = []
+        for dof, gain in ((sim.dofs[0], tacho_gains(sim.spec)[0]), (sim.dofs[1], tacho_gains(sim.spec)[1])):
+            y = gain * state[0, -n_fit:, qvel0 + dof]
+            a, b, _ = np.linalg.lstsq(basis, y, rcond=None)[0]
+            resp.append((a + 1j * b) / amplitude_v)  # y = Im{G e^{jwt}}·A = A(|G|cos φ sin + |G| sin φ cos)
+        out.append(resp)
+    return np.array(out)

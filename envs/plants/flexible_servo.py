@@ -8,13 +8,10 @@ Preset: configs/plants/flexible_servo.yaml (SI, as printed in §3.1).
 
 from __future__ import annotations
 
-import mujoco
 import numpy as np
-from mujoco import rollout
 
 from ..config import Node
 from ..friction import LuGreParams
-from .sim import PlantSim, linearize
 from .spec import Envelope, JointSpec, PlantSpec, SensorSpec, SpringSpec, randomization, sampling
 
 # Ranges of the preset's values (§3.1-3.2), each wide around the document's: a value outside is another
@@ -130,44 +127,3 @@ def state_space(spec: PlantSpec, sensor: str = "y1") -> tuple[np.ndarray, np.nda
     kw1, kw2 = tacho_gains(spec)
     C = np.array([[kw1, 0.0, 0.0]]) if sensor == "y1" else np.array([[0.0, kw2, 0.0]])
     return A, B, C
-
-
-def frf_linearized(freqs_hz: np.ndarray) -> np.ndarray:
-    """(len(freqs), 2) complex u->y1, u->y2 responses of the linearised friction-free MuJoCo model."""
-    sim = PlantSim("flexible_servo", friction_model="none")
-    A, B = linearize(sim)
-    C = np.zeros((2, A.shape[0]))
-    C[0, sim.model.nv + sim.dofs[0]] = tacho_gains(sim.spec)[0]
-    C[1, sim.model.nv + sim.dofs[1]] = tacho_gains(sim.spec)[1]
-    return np.array([C @ np.linalg.solve(2j * np.pi * f * np.eye(len(A)) - A, B) for f in freqs_hz])
-
-
-def frf_sine(
-    freqs_hz: np.ndarray, amplitude_v: float = 0.1, settle_s: float = 80.0, periods: int = 4
-) -> np.ndarray:
-    """Same responses from simulated sine inputs (mujoco.rollout, command updated every physics step
-    with the mid-step value, so the per-step hold adds no phase lag), fitted over whole periods."""
-    sim = PlantSim("flexible_servo", friction_model="none")
-    m, h = sim.model, sim.spec.timestep
-    out = []
-    state0 = np.zeros((1, mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS)))
-    mujoco.mj_resetData(m, sim.data)
-    mujoco.mj_getState(m, sim.data, state0[0], mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    for f in freqs_hz:
-        w = 2 * np.pi * f
-        n_fit = round(periods / f / h)
-        n = round(settle_s / h) + n_fit
-        t_mid = (np.arange(n) + 0.5) * h
-        ctrl = np.zeros((1, n, m.nu))
-        ctrl[0, :, sim.idx.drive_ctrl] = amplitude_v * np.sin(w * t_mid)
-        state, _ = rollout.rollout(m, sim.data, state0, ctrl)
-        qvel0 = 1 + m.nq  # FULLPHYSICS: time, qpos, qvel, ...
-        t_end = (np.arange(n) + 1) * h
-        basis = np.stack([np.sin(w * t_end[-n_fit:]), np.cos(w * t_end[-n_fit:]), np.ones(n_fit)], axis=1)
-        resp = []
-        for dof, gain in ((sim.dofs[0], tacho_gains(sim.spec)[0]), (sim.dofs[1], tacho_gains(sim.spec)[1])):
-            y = gain * state[0, -n_fit:, qvel0 + dof]
-            a, b, _ = np.linalg.lstsq(basis, y, rcond=None)[0]
-            resp.append((a + 1j * b) / amplitude_v)  # y = Im{G e^{jwt}}·A = A(|G|cos φ sin + |G| sin φ cos)
-        out.append(resp)
-    return np.array(out)

@@ -8,7 +8,7 @@ Preset: configs/plants/kang_robot.yaml (document units N·m and deg, converted h
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from .. import units
 from ..config import Node
@@ -118,32 +118,3 @@ def build(cfg: Node, friction_model: str) -> PlantSpec:
         envelope=ENVELOPE,
         document=doc,
     )
-
-
-def pd_bounds(rate_deg_s: float = 0.05) -> dict[str, float]:
-    """Equilibrium-region bounds (deg) from simulated P control of slow reference ramps (the §6 method):
-    the largest error held before the rotor breaks away, ramping up (θ_L) and down (θ_H). The default
-    0.05 deg/s is the document's ramp: faster ramps overshoot the bound while the rotor crosses the
-    Stribeck region (1.4 % at 0.5 deg/s)."""
-    from . import plant_spec
-    from .sim import PlantSim
-
-    spec = plant_spec("kang_robot")
-    period = spec.document.identification_period_s
-    spec = replace(spec, control_period=period)
-    kp = spec.document.kp_nm_per_rad
-    out = {}
-    for key, direction in (("theta_L_deg", 1.0), ("theta_H_deg", -1.0)):
-        sim = PlantSim(spec)
-        sim.reset()
-        rate = direction * units.deg_to_rad(rate_deg_s)
-        errors = []
-        for k in range(round(12.0 / rate_deg_s / period)):
-            r = rate * k * period
-            e = sim.data.qpos[sim.dofs[0]] - r
-            res = sim.step(-kp * e)
-            errors.append(e)
-            if abs(res.qvel[0]) > 20 * abs(rate):  # slipping: the bound was the error held just before
-                break
-        out[key] = units.rad_to_deg(max(errors, key=abs))
-    return out

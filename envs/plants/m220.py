@@ -13,13 +13,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-from scipy.optimize import minimize_scalar
-
 from .. import units
 from ..config import Node
 from ..friction import LuGreParams
-from .sim import PlantSim
 from .spec import BeltSpec, Envelope, JointSpec, PlantSpec, SensorSpec, randomization, sampling
 
 PULLEY_TEETH = (18, 24, 36, 72)  # SR pulley table, §2.1.3
@@ -115,13 +111,6 @@ def eq22(cfg: Node) -> float:
     return J["drive"] + J["sr"] / n_g1**2 + J["load"] / n_g**2
 
 
-def eq22_of(overrides: dict | None = None) -> float:
-    """eq22 for the preset with YAML-level overrides (e.g. another pulley configuration)."""
-    from . import plant_config
-
-    return eq22(Node(plant_config("m220", overrides), "m220.yaml"))
-
-
 def build(cfg: Node, friction_model: str) -> PlantSpec:
     """The SI PlantSpec of the preset."""
     c, b, idf, f = (cfg.section(k) for k in ("configuration", "belt", "identified", "friction"))
@@ -206,56 +195,3 @@ def build(cfg: Node, friction_model: str) -> PlantSpec:
         envelope=ENVELOPE,
         document=doc,
     )
-
-
-# ------------------------------------------------------------------------------------------------------
-# Checks and identification of this plant (seed 000 §2.1.2, §2.2)
-
-
-def reflected_inertia_sim(overrides: dict, torque_nm: float = 0.01, duration: float = 0.3) -> float:
-    """Drive inertia (kg·m²) measured from the simulated motion of the belt-coupled model without
-    friction: θ(t) = T·t²/(2·J) fitted over the second half of a constant-torque run from rest."""
-    sim = PlantSim("m220", overrides, friction_model="none")
-    sim.reset()
-    u = torque_nm / sim.spec.actuator_gain
-    n = round(duration / sim.spec.timestep)
-    t, th = np.empty(n), np.empty(n)
-    for k in range(n):
-        sim.step(u, nstep=1)
-        t[k], th[k] = sim.data.time, sim.data.qpos[sim.dofs[0]]
-    half = slice(n // 2, n)
-    curvature = np.polyfit(t[half], th[half], 2)[0]  # = T/(2J)
-    return torque_nm / (2.0 * curvature)
-
-
-def step_counts(gain: float, times: tuple[float, ...], v: float, overrides: dict | None = None) -> np.ndarray:
-    """Drive-encoder counts of the simulated M220 open-loop step of v volts at the given times."""
-    # a nominal experiment: no randomization, so other gains do not trip the range checks (σ0 ∝ gain)
-    ov = {
-        "identified": {"gain_counts_per_v_s2": float(gain)},
-        "randomization": {k: [1.0, 1.0] for k in ("sigma0_scale", "inertia_scale")},
-    }
-    for key, value in (overrides or {}).items():
-        ov.setdefault(key, {}).update(value)
-    sim = PlantSim("m220", ov)
-    sim.reset()
-    dt, out, t_now = sim.spec.timestep, [], 0.0
-    rpc = sim.spec.document.rad_per_count
-    for t in times:
-        n = round((t - t_now) / dt)
-        sim.step(v, nstep=n)
-        t_now += n * dt
-        out.append(np.floor(sim.data.qpos[sim.dofs[0]] / rpc))
-    return np.array(out)
-
-
-def fit_gain(times: tuple[float, float], counts: tuple[float, float], v: float) -> float:
-    """Plant gain (counts/(V·s²)) whose simulated step of v volts best matches the measured points
-    (times s, counts; §2.2's are in m220.yaml's identified section), relative least squares."""
-    target = np.asarray(counts, dtype=float)
-
-    def cost(g: float) -> float:
-        return float(np.sum((step_counts(g, times, v) / target - 1.0) ** 2))
-
-    res = minimize_scalar(cost, bounds=(5e4, 2e5), method="bounded", options={"xatol": 1.0})
-    return float(res.x)
