@@ -230,7 +230,7 @@ def backend_of(args: Any, ap: Any) -> Ray | None:
     return Ray(args.address) if args.backend == "ray" else None
 
 
-def _ray_init(workers: int, address: str | None) -> None:
+def ray_init(workers: int, address: str | None) -> None:
     import ray
 
     if ray.is_initialized():
@@ -263,7 +263,7 @@ def run_jobs(
     if ray is not None:
         import ray as ray_
 
-        _ray_init(workers, ray.address)
+        ray_init(workers, ray.address)
         task = ray_.remote(num_cpus=1, max_retries=ray.max_retries)(_run_chunk_ray)
         pending = {task.remote(chunk, prov, models): len(chunk) for chunk in todo}
         try:

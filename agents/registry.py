@@ -20,6 +20,8 @@ from functools import cache, partial
 from importlib.metadata import entry_points
 from pathlib import Path
 
+from frictiongym.envs.config import Node, load_yaml
+
 from .base import Controller, Zero
 from .classical import PD, PID, RDFC, CoulombViscousFF, LabPD, LuGreObserver, Southward, StateFeedback
 from .learned import PolicyInputs, SB3Policy
@@ -86,7 +88,6 @@ def model_dirs(paths: Sequence[str | Path]) -> list[Path]:
 
 def model_factory(folder: Path) -> tuple[str, Callable[[], Controller]]:
     """(name, factory) of a saved model's folder, checked against its manifest."""
-    from frictiongym.envs.config import Node, load_yaml
 
     m = Node(load_yaml(folder / MANIFEST), str(folder / MANIFEST))
     name, algo = m["name"], m["algorithm"]

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable
 from functools import cache
-from typing import Any, TypeVar
+from typing import Any, ClassVar, TypeVar
 
 from frictiongym.envs.config import ConfigError, Node, configs_dir, load_yaml
 
@@ -19,21 +19,36 @@ FILE = "controllers.yaml"
 T = TypeVar("T")
 
 
+KNOWLEDGE = "knowledge"
+
+
+class FamilySettings:
+    """Base of a controller family's settings object: declares the family's section of controllers.yaml
+    (SECTION). Every family module is imported with the classical package, so when any family reads its
+    section, all sections are declared."""
+
+    SECTION: ClassVar[str]
+    sections: ClassVar[set[str]] = set()
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        FamilySettings.sections.add(cls.SECTION)
+
+
 @cache
 def _raw() -> dict[str, Any]:
-    """controllers.yaml, loaded once; a top-level section no family reads is an error naming it."""
-    from .classical import SETTINGS
-
-    data = load_yaml(configs_dir() / FILE)
-    known = {family.SECTION for family in SETTINGS} | {KNOWLEDGE}
-    for key in data:
-        if key not in known:
-            raise ConfigError(key, f"unknown section; allowed: {sorted(known)}", FILE)
-    return data
+    """controllers.yaml, loaded once."""
+    return load_yaml(configs_dir() / FILE)
 
 
 def read(name: str, build: Callable[[Node], T]) -> T:
-    """build(section) for one top-level section of controllers.yaml; keys it did not read are errors."""
+    """build(section) for one top-level section of controllers.yaml; keys it did not read are errors, and
+    so is (at a family's read) a top-level section no family declares."""
+    if name != KNOWLEDGE:
+        known = FamilySettings.sections | {KNOWLEDGE}
+        for key in _raw():
+            if key not in known:
+                raise ConfigError(key, f"unknown section; allowed: {sorted(known)}", FILE)
     node = Node(_raw(), FILE).section(name)
     out = build(node)
     node.done()
@@ -47,9 +62,6 @@ def with_overrides(settings: T, overrides: dict[str, Any]) -> T:
     if unknown:
         raise ConfigError(type(settings).__name__, f"unknown setting(s) {unknown}; allowed: {sorted(fields)}")
     return dataclasses.replace(settings, **overrides)
-
-
-KNOWLEDGE = "knowledge"
 
 
 @cache

@@ -16,6 +16,7 @@ Every episode is an engine job (resumable episodes.csv); the summary is computed
 
 from __future__ import annotations
 
+import json
 import math
 from collections import defaultdict
 from dataclasses import dataclass
@@ -23,15 +24,20 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from tqdm import tqdm
 
+from frictiongym.agents.lab import experiments as ex
+from frictiongym.agents.lab.identification import identify_simulated
 from frictiongym.envs.config import ConfigError
-from frictiongym.envs.plants.params import EpisodeParams
+from frictiongym.envs.plants.identified import IdentifiedFriction, apply_identified
+from frictiongym.envs.plants.params import EpisodeParams, spec_with
 from frictiongym.envs.records import atomic_text, atomic_write, csv_text
 from frictiongym.envs.sampler import stream
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
 
 from . import engine, registry, stats
+from .evaluate import EnvCache, run_episode
 
 SEEDS = 700_000  # sim-to-real episode seeds start here (disjoint from every suite and from training)
 SET_SPAN = 10_000  # seeds per set: one-axis and structure episodes, each joint set, the model-error plants
@@ -127,7 +133,6 @@ def plan(
 def condition(e: Episode | dict[str, Any], ranges: dict[str, tuple[float, float]]) -> tuple[str, float | str]:
     """(axis or joint set, shift value; for the structural axis the structure's name) of an episode or an
     episodes.csv row."""
-    import json
 
     params = dict(e.params) if isinstance(e, Episode) else json.loads(e["params"] or "{}")
     if "friction_model" in params:
@@ -367,14 +372,6 @@ def model_error(
     then run each controller on that same episode designed on three models: the nominal preset, the
     identified plant (nominal preset + identified friction) and the true plant. Rows: controller, design,
     seed, main metric."""
-    from tqdm import tqdm
-
-    from frictiongym.agents.lab import experiments as ex
-    from frictiongym.agents.lab.identification import identify_simulated
-    from frictiongym.envs.plants.identified import IdentifiedFriction, apply_identified
-    from frictiongym.envs.plants.params import spec_with
-
-    from .evaluate import EnvCache, run_episode
 
     if draws > SET_SPAN:
         raise ValueError(f"--model-error at most {SET_SPAN} (the study's seed sets, configs/suites.yaml)")

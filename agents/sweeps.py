@@ -25,6 +25,7 @@ from typing import Any
 from frictiongym.envs.config import ConfigError, Node, load_yaml, preset_path
 from frictiongym.envs.records import command_line
 
+from .engine import ray_init
 from .training import RunConfig, TrainingRun, _raw_config, _run_config, load_config, scenario_settings
 
 SEARCHES = ("grid", "optuna")
@@ -110,9 +111,7 @@ def run_sweep(sweep: Sweep, out: Path, address: str | None = None, workers: int 
     row per trial: its values, seed, best admissible validation metric and model folder."""
     from ray import tune
 
-    from .engine import _ray_init
-
-    _ray_init(workers, address)
+    ray_init(workers, address)
     command = command_line()
     out = Path(out).resolve()
 

@@ -27,6 +27,8 @@ import math
 import multiprocessing as mp
 import os
 import pickle
+import random
+import shutil
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -41,7 +43,15 @@ import numpy as np
 import yaml
 from gymnasium import spaces
 
-from frictiongym.envs.config import ConfigError, Node, deep_merge, load_yaml
+from frictiongym.envs.config import (
+    ConfigError,
+    Node,
+    configs_dir,
+    deep_merge,
+    load_yaml,
+    preset_names,
+    preset_path,
+)
 from frictiongym.envs.plants.spec import RANDOMIZATION_KEYS
 from frictiongym.envs.records import atomic_text, atomic_write, command_line, csv_text
 from frictiongym.envs.scenario import load_scenario
@@ -59,6 +69,7 @@ from .learned import (
     policy_observation,
     residual_action,
 )
+from .registry import BUILTIN, make
 from .settings import knowledge_defaults
 from .training_env import SEEDS_PER_RUN, TRAINING_SEEDS, TrainingVecEnv
 
@@ -106,14 +117,12 @@ class RunConfig:
 
 
 def config_names() -> list[str]:
-    from frictiongym.envs.config import preset_names
 
     return preset_names("agents")
 
 
 def _raw_config(path: str | Path, seen: tuple[str, ...] = ()) -> tuple[dict[str, Any], str]:
     """A config file's mapping with its `extends:` chain merged in (the child's keys win)."""
-    from frictiongym.envs.config import preset_path
 
     file = preset_path(path, "agents")
     raw = load_yaml(file)
@@ -129,7 +138,6 @@ def _raw_config(path: str | Path, seen: tuple[str, ...] = ()) -> tuple[dict[str,
 def scenario_settings(raw: dict[str, Any], scenario: str) -> dict[str, Any]:
     """A scenario's settings in a (merged) config file: configs/agents/_defaults.yaml, then the file's
     `defaults`, then its scenario entry."""
-    from frictiongym.envs.config import configs_dir
 
     defaults = deep_merge(load_yaml(configs_dir() / "agents" / "_defaults.yaml"), raw.get("defaults") or {})
     return copy.deepcopy(deep_merge(defaults, raw["scenarios"][scenario]))  # the caller may edit it
@@ -198,13 +206,10 @@ def _run_config(c: Node, name: str, algo: str, scenario: str, source: str) -> Ru
     o = c.section("observation")
     res = c.section("residual")
     base = res["base"]
-    if base is not None:
-        from .registry import BUILTIN
-
-        if base not in BUILTIN or base == "Zero":
-            raise res.error(
-                "base", f"unknown base controller {base!r}; allowed: {sorted(set(BUILTIN) - {'Zero'})}"
-            )
+    if base is not None and (base not in BUILTIN or base == "Zero"):
+        raise res.error(
+            "base", f"unknown base controller {base!r}; allowed: {sorted(set(BUILTIN) - {'Zero'})}"
+        )
     inputs = PolicyInputs(o.integer("history", 0, 64), o.boolean("privileged_critic"), base is not None)
     hp = c.section("hyperparams")
     hyper = {k: hp[k] for k in list(hp.keys()) if hp[k] is not None}  # null: the algorithm's default
@@ -345,7 +350,6 @@ def training_env_kwargs(cfg: RunConfig) -> dict[str, Any]:
     """The env keywords of a run's training envs: the config's randomisation and reward, the base
     controller's hardware and the model's observation blocks (as the trained controller's evaluation
     env gets them). Checks that the base applies to the scenario."""
-    from .registry import make
 
     base = make(cfg.base) if cfg.base is not None else None
     sc = load_scenario(cfg.scenario, scenario_overrides(cfg) or None, randomize=cfg.randomize)
@@ -360,7 +364,6 @@ def training_env_kwargs(cfg: RunConfig) -> dict[str, Any]:
 def make_training_env(cfg: RunConfig, seed: int, nthread: int = 1) -> TrainingVecEnv:
     """The n_envs training envs of run seed `seed` on the batched core, each env's own base controller in
     the loop (agents/training_env.py)."""
-    from .registry import make
 
     bases = (lambda: make(cfg.base)) if cfg.base is not None else None
     kw = training_env_kwargs(cfg)
@@ -409,7 +412,7 @@ def build_model(cfg: RunConfig, venv: Any, seed: int, tb: str | None) -> Any:
     if cfg.algorithm in ("PPO", "RecurrentPPO") or hyper.get("use_sde"):
         pk.setdefault("log_std_init", math.log(cfg.initial_std))
     if cfg.inputs.privileged:
-        from .asymmetric import asymmetric_policy
+        from .asymmetric import asymmetric_policy  # builds torch modules at import: only when asked for
 
         sc = load_scenario(cfg.scenario)
         policy = asymmetric_policy(cfg.algorithm)
@@ -493,7 +496,6 @@ def evaluate_controller(controller: Controller, episodes: list, envs: EnvCache) 
 
 def classical_on(episodes: list, envs: EnvCache) -> dict[str, dict[str, float]]:
     """Metric means of every applicable built-in controller (Zero included) on the episodes."""
-    from .registry import BUILTIN
 
     out = {}
     for name, factory in BUILTIN.items():
@@ -566,7 +568,6 @@ def evaluate_snapshot(cfg: RunConfig, name: str, snap: Snapshot, episodes: list)
     training process, the same numbers (picklable for the worker). The global random generators are left
     as they were (SB3's load reseeds them), so validation in the training process does not change the
     training."""
-    from .registry import make
 
     with _generators_kept():
         model = algorithm_class(cfg.algorithm).load(io.BytesIO(snap.model), device="cpu")
@@ -579,7 +580,6 @@ def evaluate_snapshot(cfg: RunConfig, name: str, snap: Snapshot, episodes: list)
 @contextlib.contextmanager
 def _generators_kept() -> Any:
     """Python's, numpy's and torch's global random generators restored on exit."""
-    import random
 
     import torch
 
@@ -901,9 +901,6 @@ EXPORTED = (MODEL, NORMALIZER, MANIFEST, "validation.csv", "training_curve.png")
 def export_model(run: Path, dest: Path) -> Path:
     """Copy a finished run's model folder (model, statistics, manifest, validation record, curve; not the
     checkpoint or logs) to dest/<name>/, e.g. into agents/models/headline/ to commit it."""
-    import shutil
-
-    from frictiongym.envs.config import Node
 
     m = Node(load_yaml(Path(run) / MANIFEST), str(Path(run) / MANIFEST))
     folder = Path(dest) / m["name"]

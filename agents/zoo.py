@@ -23,9 +23,17 @@ from gymnasium.envs import registration
 
 from frictiongym.envs.config import ConfigError
 
+from .evaluate import EnvCache
 from .learned import PolicyInputs, SB3Policy, algorithm_class
 from .registry import make
-from .training import ResidualEnv, best_classical, classical_on, evaluate_controller, validation_episodes
+from .training import (
+    ResidualEnv,
+    best_classical,
+    classical_on,
+    evaluate_controller,
+    validation_episodes,
+    zero_output,
+)
 
 ZOO_COMMANDS = ("train", "enjoy", "record_video")
 
@@ -64,7 +72,6 @@ class ZeroResidualStart(_callback_base()):
         self.std = std
 
     def _on_training_start(self) -> None:
-        from .training import zero_output
 
         zero_output(self.model, self.std)
 
@@ -126,7 +133,6 @@ def zoo_policy(run: str | Path, algo: str, name: str | None = None) -> SB3Policy
 def validate(run: str | Path, algo: str, env_id: str, episodes: int = 10) -> dict[str, Any]:
     """A zoo agent against the best classical baseline on the first `episodes` validation-suite episodes
     of the scenario it trained on (the selection the project's own training uses; never the test suite)."""
-    from .evaluate import EnvCache
 
     entry = gym.spec(env_id).entry_point
     scenario = zoo_env_kwargs(run).get("scenario") or registration.load_env_creator(entry).default_scenario

@@ -19,11 +19,14 @@ from __future__ import annotations
 
 import argparse
 import math
+import multiprocessing as mp
 import os
 import statistics
 import sys
 from pathlib import Path
 from typing import Any
+
+from tqdm import tqdm
 
 from frictiongym.agents.engine import init_worker, run_interruptibly
 from frictiongym.agents.training import TrainingRun, run_config_with
@@ -158,9 +161,6 @@ def main(argv: list[str] | None = None) -> int:
     order = list(setups)
 
     def run() -> int:
-        import multiprocessing as mp
-
-        from tqdm import tqdm
 
         with mp.get_context("spawn").Pool(
             args.workers, initializer=init_worker, initargs=(os.getpid(),), maxtasksperchild=1

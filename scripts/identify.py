@@ -33,6 +33,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from frictiongym.agents.lab import workflow
 from frictiongym.agents.lab.identify import recovery, run
 from frictiongym.envs.config import ConfigError, plant_names
 from frictiongym.envs.records import atomic_text
@@ -105,7 +106,6 @@ def main(argv: list[str] | None = None) -> int:
 
 def _lab(args: argparse.Namespace) -> int:
     """The drive-log sub-commands (frictiongym.agents.lab.workflow)."""
-    from frictiongym.agents.lab import workflow
 
     if args.kind == "idim":
         r = workflow.identify(workflow.IdentifyOptions(args.csv, args.validation, delays=tuple(args.delays)))

@@ -24,8 +24,10 @@ import sys
 from pathlib import Path
 
 from frictiongym.agents.engine import run_interruptibly
+from frictiongym.agents.sweeps import METRIC, load_sweep, run_sweep
 from frictiongym.agents.training import config_names, export_model, load_config, train_many
 from frictiongym.envs.config import ConfigError
+from frictiongym.envs.records import atomic_text, csv_text
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -84,8 +86,6 @@ def main(argv: list[str] | None = None) -> int:
 
 def sweep(args: argparse.Namespace) -> int:
     """Run a sweep on Ray Tune and write DIR/<sweep>.csv (one row per trial)."""
-    from frictiongym.agents.sweeps import METRIC, load_sweep, run_sweep
-    from frictiongym.envs.records import atomic_text, csv_text
 
     try:
         s = load_sweep(args.sweep)

@@ -168,8 +168,9 @@ def _stepped_once(seed: int) -> np.ndarray:
 
 
 def test_controllers_yaml_unknown_keys_name_the_file(monkeypatch):
-    from frictiongym.agents import settings
+    from frictiongym.agents import classical, settings
 
+    assert classical.PIDSettings.SECTION in settings.FamilySettings.sections
     raw = settings.load_yaml(settings.configs_dir() / settings.FILE)
     for bad, match in (
         ({**raw, "southwrd": {}}, r"controllers\.yaml: southwrd: unknown section"),

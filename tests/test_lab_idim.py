@@ -9,7 +9,8 @@ import pytest
 
 from frictiongym.agents.lab import idim
 from frictiongym.agents.lab.drive_log import emps_log, read_drive_log, write_drive_log
-from frictiongym.agents.reproduce import janot2019, published_node
+from frictiongym.agents.reproduce import janot2019
+from frictiongym.agents.reproduce.report import published_node
 from frictiongym.envs.config import ConfigError
 
 

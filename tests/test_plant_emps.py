@@ -15,7 +15,8 @@ from frictiongym.agents.evaluate import run_episode
 from frictiongym.agents.lab import closed_loop, idim
 from frictiongym.agents.lab.drive_log import DriveLog, emps_log
 from frictiongym.agents.registry import make
-from frictiongym.agents.reproduce import janot2019, published_node
+from frictiongym.agents.reproduce import janot2019
+from frictiongym.agents.reproduce.report import published_node
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.plants.mjcf import to_mjcf

@@ -29,7 +29,7 @@ OPTIONS = {"test": "ray"}
 
 @pytest.fixture(scope="module")
 def local_ray():
-    engine._ray_init(2, None)  # a local Ray instance with 2 worker processes
+    engine.ray_init(2, None)  # a local Ray instance with 2 worker processes
     yield
     ray.shutdown()
 

@@ -10,13 +10,10 @@ from .pid import PD, PID, LabPD, PIDSettings, design_pid
 from .southward_rdfc import RDFC, RDFCSettings, Southward, SouthwardSettings
 from .state_feedback import StateFeedback, StateFeedbackSettings
 
-SETTINGS = (PIDSettings, SouthwardSettings, RDFCSettings, StateFeedbackSettings, LuGreObserverSettings)
-
 __all__ = [
     "PD",
     "PID",
     "RDFC",
-    "SETTINGS",
     "CoulombViscousFF",
     "LabPD",
     "LuGreObserver",

@@ -19,7 +19,7 @@ from .pid import PID, PIDSettings
 
 
 @dataclass(frozen=True)
-class LuGreObserverSettings:
+class LuGreObserverSettings(cfg.FamilySettings):
     """observer_gain: k per plant preset, coupling the loop error into the observer (rad/s per rad, or
     per V·s/rad for a speed loop); the trade-off measured is in controllers.yaml."""
 

@@ -38,7 +38,7 @@ class LoopDesign:
 
 
 @dataclass(frozen=True)
-class PIDSettings:
+class PIDSettings(cfg.FamilySettings):
     """PD/PID design choices (controllers.yaml `pid`): integrator pole a = integrator_pole_ratio·ω_n, and
     the loop design per plant preset (sources in the YAML)."""
 

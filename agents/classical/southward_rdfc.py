@@ -18,7 +18,7 @@ EQ12B_READINGS = ("printed", "symmetric")
 
 
 @dataclass(frozen=True)
-class SouthwardSettings:
+class SouthwardSettings(cfg.FamilySettings):
     """static_friction_margin: T̃_s = margin·T_s (Kang §6: 1.2)."""
 
     SECTION: ClassVar[str] = "southward"
@@ -31,7 +31,7 @@ class SouthwardSettings:
 
 
 @dataclass(frozen=True)
-class RDFCSettings:
+class RDFCSettings(cfg.FamilySettings):
     """static_friction_margin (Kang §6: 1.2); delta_deg: dead band δ_H = -δ_L (deg, §6: 0.02 and 0.04);
     eq12b_reading: "printed" or "symmetric" third line of eq. (12b) (ERRATA 001, controllers.yaml)."""
 

@@ -26,7 +26,7 @@ COMPENSATION = ("none", "relay", "highgain")
 
 
 @dataclass(frozen=True)
-class StateFeedbackSettings:
+class StateFeedbackSettings(cfg.FamilySettings):
     """Wallenborg §4.1-4.2 (controllers.yaml `state_feedback`): closed-loop poles (s + ω_cl)(s² + 2ζω_cl s
     + ω_cl²) (rad/s), observer poles at alpha·ω_cl; u_max_v: clip of the linear part (V, Appendix B);
     eps_v: the compensation's ε on ŷ (V, SIMNON code, ERRATA 002); continuous_max_period_s: the

@@ -17,10 +17,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from frictiongym.envs.plants import PlantSpec
+from frictiongym.envs.plants import PlantSpec, plant_spec
 from frictiongym.envs.plants.sim import PlantSim
 from frictiongym.envs.suites import Episode
 
+from ..evaluate import run_episode
+from ..registry import make
 from .drive_log import DriveLog, emps_log
 from .idim import PUBLISHED, IdimSettings, central_difference, relative_error, states
 
@@ -76,8 +78,6 @@ def closed_loop(
     on preset `plant` (a configs/plants name; default the scenario's). The simulated force is
     gτ·(ν + disturbance): the command the controller computed at each sample plus the injected part,
     as the logged ν includes it. overrides: further scenario overrides (e.g. another friction model)."""
-    from ..evaluate import run_episode
-    from ..registry import make
 
     if isinstance(which, str):
         log, scenario, ov = emps_log(which), SCENARIOS[which], {}
@@ -117,8 +117,6 @@ def open_loop(which: str | DriveLog, plant: str | None = None) -> Comparison:
     log = emps_log(which) if isinstance(which, str) else which
     spec = _nominal(plant)
     if abs(spec.control_period - log.period) > 1e-3 * log.period:
-        from frictiongym.envs.plants import plant_spec
-
         spec = plant_spec(plant or "emps", {"sampling": {"control_period_s": round(log.period, 9)}})
     sim = PlantSim(spec)
     meas = measured_states(log)
@@ -133,6 +131,5 @@ def open_loop(which: str | DriveLog, plant: str | None = None) -> Comparison:
 
 
 def _nominal(plant: str | None = None) -> PlantSpec:
-    from frictiongym.envs.plants import plant_spec
 
     return plant_spec(plant or "emps")

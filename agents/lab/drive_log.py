@@ -18,6 +18,7 @@ import numpy as np
 
 from frictiongym.envs import recorded
 from frictiongym.envs.config import ConfigError
+from frictiongym.envs.records import atomic_text
 from frictiongym.envs.units import deg_to_rad
 
 EMPS_DIR = "published/emps"  # under configs/
@@ -163,7 +164,6 @@ def _checked(log: DriveLog) -> DriveLog:
 
 def write_drive_log(path: str | Path, log: DriveLog) -> None:
     """Write a log as a CSV that read_drive_log reads back (SI columns, scalars and provenance as '#')."""
-    from frictiongym.envs.records import atomic_text
 
     gain = {"m": "drive_gain_n_per_v", "rad": "drive_gain_nm_per_v"}[log.unit]
     head = [f"# {line}" for line in log.provenance] + [f"# {gain} = {log.drive_gain!r}"]

@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 import yaml
+from tqdm import tqdm
 
 from frictiongym.envs.config import configs_dir
 from frictiongym.envs.plants import plant_config, plant_spec
@@ -388,7 +389,6 @@ def _plot_document(t: dict[str, np.ndarray], values: dict[str, float], path: Pat
 def recovery(plants: list[str], draws: int) -> tuple[str, dict[str, dict[str, list[float]]]]:
     """The acceptance study: LuGre identification on `draws` randomised plants per plant (noise and
     quantisation on): the relative error of every identified parameter. Returns a markdown table."""
-    from tqdm import tqdm
 
     errors: dict[str, dict[str, list[float]]] = {}
     for plant in plants:

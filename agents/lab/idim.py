@@ -34,8 +34,9 @@ from scipy import optimize, signal, stats
 
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.friction import KANG_STICK_BAND, MAXWELL_SLIP_LENGTHS, MAXWELL_SLIP_SHARES
+from frictiongym.envs.plants import plant_spec
 
-from .drive_log import DriveLog
+from .drive_log import DriveLog, emps_log
 
 ALPHA = 0.05  # 95 % intervals
 
@@ -206,7 +207,6 @@ def _kang(s: States) -> list[np.ndarray]:
 
 @cache
 def _emps_stribeck_velocity() -> float:
-    from frictiongym.envs.plants import plant_spec
 
     return plant_spec("emps").drive_friction.vs
 
@@ -505,7 +505,6 @@ def model_table(
 def emps_table() -> tuple[ModelRow, ...]:
     """The model table of the EMPS logs (cached per process: the reproduction report and the identify
     front end both read it)."""
-    from .drive_log import emps_log
 
     return tuple(model_table(emps_log("estimation"), emps_log("validation")))
 

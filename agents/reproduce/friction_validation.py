@@ -14,7 +14,7 @@ from frictiongym.envs.friction import BRISTLE_MODELS
 from frictiongym.envs.plants import plant_names, plant_spec
 from frictiongym.envs.units import deg_to_rad
 
-from . import Section, row
+from .report import Section, row
 
 # sliding speeds (multiples of v_s): LuGre at five, the other structures at three
 SPEEDS = {

@@ -15,7 +15,7 @@ from frictiongym.envs.config import Node
 from frictiongym.envs.plants import m220, plant_config, plant_spec
 from frictiongym.envs.plants.sim import PlantSim
 
-from . import Section, row, save_figure
+from .report import Section, row, save_figure
 
 CONFIGS = {
     "default": {},

@@ -17,6 +17,7 @@ from typing import Any
 from ..config import ConfigError, Node, load_yaml, merge, plant_names, preset_path
 from ..friction import BRISTLE_MODELS, FRICTION_MODELS, check_numerics
 from .identified import IdentifiedFriction, apply_identified
+from .params import check_randomization
 from .spec import JointSpec, PlantSpec
 
 __all__ = ["PlantSpec", "plant_config", "plant_module", "plant_names", "plant_spec"]
@@ -57,7 +58,6 @@ def plant_spec(
     key (unknown and missing keys are errors naming the file) and, with check_ranges (the plant will be
     randomised), every corner of the randomization ranges. Without it, values drawn from the ranges
     are never used, and any value pinned at a reset is checked there. `prefix`: as plant_config's."""
-    from .params import check_randomization
 
     if friction_model not in FRICTION_MODELS:
         raise ConfigError("friction_model", f"{friction_model!r} not in {list(FRICTION_MODELS)}")
