@@ -118,3 +118,32 @@ def test_bench_envs_prints_ratios():
     rows = [ln.split() for ln in proc.stdout.splitlines()[1:] if ln.startswith("kang_regulation")]
     assert [r[1:-3] for r in rows] == [["single"], ["vector", "8"], ["vector", "64"]]
     assert all(0.05 < float(r[-1]) < 2 for r in rows)
+
+
+def test_the_frictiongym_command_is_installed_and_runs_a_front_end(tmp_path):
+    """The console script (setup.cfg) runs scripts/reproduce.py's main: its usage names the command and a
+    section runs and writes its report, as `python scripts/reproduce.py` does."""
+    import shutil
+
+    exe = shutil.which("frictiongym")
+    assert exe is not None, "pip install -e . puts the frictiongym command on PATH"
+    out = subprocess.run([exe, "reproduce", "--help"], capture_output=True, text=True, check=True).stdout
+    assert out.startswith("usage: frictiongym reproduce")
+    subprocess.run([exe, "reproduce", "--sections", "kang", "--out", str(tmp_path)], check=True)
+    rows = json.loads((tmp_path / "report.json").read_text())
+    assert rows and all(r["id"].startswith("kang.") and r["pass"] for r in rows)
+
+
+def test_the_frictiongym_command_lists_every_front_end_and_refuses_unknown_ones(capsys):
+    from frictiongym.scripts import cli
+
+    assert cli.main(["--help"]) == 0
+    listed = capsys.readouterr().out
+    for command, module in cli.COMMANDS.items():
+        assert f"  {command} " in listed
+        assert (ROOT / "scripts" / f"{module}.py").is_file()
+    scripts = {p.stem for p in (ROOT / "scripts").glob("*.py")} - {"__init__", "cli"}
+    assert scripts == set(cli.COMMANDS.values())  # every front end has its command
+    assert cli.main(["leaderbord"]) == 2
+    assert "unknown command 'leaderbord'" in capsys.readouterr().err
+    assert cli.main([]) == 2
