@@ -116,11 +116,14 @@ def drive_friction_reason(scenario: Scenario) -> str | None:
     return None
 
 
+ZERO = "Zero"  # the reference controller's name: every score is relative to it (u = 0)
+
+
 class Zero(Controller):
     """The do-nothing reference: always commands 0. Every table shows it, and the normalised score of an
     episode, s = 1 - m / m_Zero, measures a controller against it on the same episode."""
 
-    name: ClassVar[str] = "Zero"
+    name: ClassVar[str] = ZERO
 
     def reset(self, ctx: EpisodeContext) -> None:
         self.action = np.zeros(1, dtype=np.float32)

@@ -39,6 +39,7 @@ from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
 
 from . import registry
+from .base import ZERO
 from .evaluate import EnvCache, run_episode
 from .stats import limit_score, normalized_score
 
@@ -441,6 +442,6 @@ def attach_scores(rows: list[dict[str, Any]], scores: dict[str, Scoring]) -> Non
     for r in rows:
         s, e = scores[r["scenario"]], episode(r)
         m = metric(r)
-        r["score"] = normalized_score(m, by.get(("Zero", *e), math.nan))  # written with repr
+        r["score"] = normalized_score(m, by.get((ZERO, *e), math.nan))  # written with repr
         m_unc, m_ideal = by.get((s.uncompensated, *e), math.nan), by.get(("Ideal", *e), math.nan)
         r["g"] = limit_score(m, m_unc, m_ideal, s.limit_score, s.floor)

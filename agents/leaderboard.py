@@ -30,6 +30,7 @@ from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.suites import Episode, load_suite
 
 from . import engine, registry, stats
+from .base import ZERO
 from .evaluate import EnvCache, EpisodeResult, run_episode
 
 REFERENCES = registry.REFERENCES  # Zero, Ideal, Oracle: run on every episode, never ranked
@@ -419,7 +420,7 @@ def plots(
     fig, axes = plt.subplots(1, len(scs), figsize=(3.2 * len(scs), 3.8), squeeze=False)
     for ax, sc in zip(axes[0], scs, strict=True):
         scored = scenarios[sc].limit_score != "none"
-        order = [r["controller"] for r in table[sc] if r["controller"] != "Zero" or not scored]
+        order = [r["controller"] for r in table[sc] if r["controller"] != ZERO or not scored]
         for i, c in enumerate(order):
             mine = [r for r in results if r.scenario == sc and r.controller == c]
             s = np.array([r.g if scored else r.score for r in mine])

@@ -22,7 +22,7 @@ from pathlib import Path
 
 from frictiongym.envs.config import Node, load_yaml
 
-from .base import Controller, Zero
+from .base import ZERO, Controller, Zero
 from .classical import PD, PID, RDFC, CoulombViscousFF, LabPD, LuGreObserver, Southward, StateFeedback
 from .learned import PolicyInputs, SB3Policy
 from .limits import Ideal, Oracle
@@ -31,7 +31,7 @@ ENTRY_POINT_GROUP = "frictiongym.controllers"
 MANIFEST = "manifest.yaml"
 
 BUILTIN: dict[str, Callable[[], Controller]] = {
-    "Zero": Zero,
+    ZERO: Zero,
     "PD": PD,
     "PID": PID,
     "LabPD": LabPD,
@@ -47,8 +47,8 @@ BUILTIN: dict[str, Callable[[], Controller]] = {
 
 def uncompensated_loop(name: str) -> Controller:
     """A scenario's uncompensated loop (benchmark.uncompensated): a built-in classical controller."""
-    if name not in BUILTIN or name == "Zero":
-        loops = [n for n in BUILTIN if n != "Zero"]
+    if name not in BUILTIN or name == ZERO:
+        loops = [n for n in BUILTIN if n != ZERO]
         raise ValueError(f"benchmark.uncompensated: {name!r} is not a built-in controller; one of {loops}")
     return BUILTIN[name]()
 
@@ -59,7 +59,7 @@ LIMITS: dict[str, Callable[[], Controller]] = {
     "Ideal": partial(Ideal, uncompensated_loop),
     "Oracle": partial(Oracle, uncompensated_loop),
 }
-REFERENCES = ("Zero", *LIMITS)
+REFERENCES = (ZERO, *LIMITS)
 
 
 MODELS_DIR = Path(__file__).parent / "models"  # committed trained models, by group

@@ -34,14 +34,15 @@ from frictiongym.envs.plants.params import EpisodeParams, spec_with
 from frictiongym.envs.records import atomic_text, atomic_write, csv_text
 from frictiongym.envs.sampler import stream
 from frictiongym.envs.scenario import load_scenario
-from frictiongym.envs.suites import Episode
+from frictiongym.envs.suites import Episode, seed_range
 
 from . import engine, registry, stats
+from .base import ZERO
 from .evaluate import EnvCache, run_episode
 
-SEEDS = 700_000  # sim-to-real episode seeds start here (disjoint from every suite and from training)
-SET_SPAN = 10_000  # seeds per set: one-axis and structure episodes, each joint set, the model-error plants
-SEED_RANGE = (SEEDS, SEEDS + 3 * SET_SPAN)  # every seed the study uses (configs/suites.yaml's table)
+SEEDS, _LAST = seed_range("sim2real")  # configs/suites.yaml's range: disjoint from every suite and training
+SET_SPAN = (_LAST + 1 - SEEDS) // 3  # seeds per set: one-axis and structure episodes, joint sets, model error
+SEED_RANGE = (SEEDS, _LAST + 1)  # every seed the study uses, [first, end)
 
 
 @dataclass(frozen=True)
@@ -296,7 +297,7 @@ def plot(table: list[dict[str, Any]], scenario: str, path: Path) -> None:
 
     axes = [a for a in AXES if any(r["axis"] == a.key for r in table)]
     fig, ax = plt.subplots(2, len(axes), figsize=(3.2 * len(axes), 6), squeeze=False)
-    names = sorted({r["controller"] for r in table if r["controller"] != "Zero"})
+    names = sorted({r["controller"] for r in table if r["controller"] != ZERO})
     for j, a in enumerate(axes):
         for name in names:
             rs = sorted(
@@ -328,7 +329,7 @@ def plot_structures(table: list[dict[str, Any]], scenario: str, path: Path) -> N
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = [r for r in table if r["axis"] == "friction_model" and r["controller"] != "Zero"]
+    rows = [r for r in table if r["axis"] == "friction_model" and r["controller"] != ZERO]
     structures = [s for s in STRUCTURES if any(r["shift"] == s for r in rows)]
     names = sorted({r["controller"] for r in rows})
     fig, ax = plt.subplots(figsize=(1.4 * len(structures) + 5, 3.8))
@@ -489,7 +490,7 @@ def run(
 
     available = registry.available(models)
     names = controllers or list(available)
-    names = ["Zero", *(n for n in names if n != "Zero")]
+    names = [ZERO, *(n for n in names if n != ZERO)]
     episodes, rejected = plan(scenario, seeds, points, joint, structures)
     options = {
         "structures": list(structures),
@@ -507,10 +508,10 @@ def run(
     plot(table, scenario, out / "sim2real.png")
     if structures:
         plot_structures(table, scenario, out / "sim2real_structures.png")
-    ran = [n for n in names if n != "Zero" and any(r["controller"] == n for r in table)]
+    ran = [n for n in names if n != ZERO and any(r["controller"] == n for r in table)]
     sc = load_scenario(scenario)
     own = sc.spec.friction_model
-    joint_rows = [r for r in table if r["axis"].startswith("joint") and r["controller"] != "Zero"]
+    joint_rows = [r for r in table if r["axis"].startswith("joint") and r["controller"] != ZERO]
     md = [
         f"# Sim-to-real study: {scenario}",
         "",
@@ -542,7 +543,7 @@ def run(
         "",
     ]
     if model_error_draws:
-        classical = [n for n in names if n in registry.BUILTIN and n != "Zero"]
+        classical = [n for n in names if n in registry.BUILTIN and n != ZERO]
         me = model_error_table(model_error(scenario, classical, model_error_draws, progress))
         fields = ["controller", "design", "mean", "ci_low", "ci_high", "loss", "loss_low", "loss_high"]
         atomic_text(out / "model_error.csv", csv_text(me, fields))

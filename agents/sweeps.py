@@ -26,7 +26,7 @@ from frictiongym.envs.config import ConfigError, Node, load_yaml, preset_path
 from frictiongym.envs.records import command_line
 
 from .engine import ray_init
-from .training import RunConfig, TrainingRun, _raw_config, _run_config, load_config, scenario_settings
+from .training import RunConfig, TrainingRun, load_config, parse_run_config, raw_config, scenario_settings
 
 SEARCHES = ("grid", "optuna")
 DISTRIBUTIONS = {"grid": "grid", "uniform": "uniform", "loguniform": "loguniform", "choice": "choice"}
@@ -87,7 +87,7 @@ def load_sweep(path: str | Path) -> Sweep:
 
 def trial_config(sweep: Sweep, values: dict[str, Any]) -> RunConfig:
     """The run config of one trial: the scenario's settings with the dotted keys replaced."""
-    raw, file = _raw_config(sweep.config)
+    raw, file = raw_config(sweep.config)
     entry = scenario_settings(raw, sweep.scenario)
     for key, value in values.items():
         node = entry
@@ -101,7 +101,7 @@ def trial_config(sweep: Sweep, values: dict[str, Any]) -> RunConfig:
         if parts[-1] not in node and parts[0] != "hyperparams":
             raise ConfigError(f"space.{key}", "not a setting of the training config", sweep.source)
         node[parts[-1]] = value
-    return _run_config(
+    return parse_run_config(
         Node(entry, file, f"scenarios.{sweep.scenario}."), raw["name"], raw["algorithm"], sweep.scenario, file
     )
 

@@ -48,6 +48,7 @@ from frictiongym.envs.config import (
     Node,
     configs_dir,
     deep_merge,
+    load_extending,
     load_yaml,
     preset_names,
     preset_path,
@@ -57,7 +58,7 @@ from frictiongym.envs.records import atomic_text, atomic_write, command_line, cs
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import load_suite, suite_held_out
 
-from .base import Controller, EpisodeContext
+from .base import ZERO, Controller, EpisodeContext
 from .engine import init_worker, provenance, stop_workers
 from .evaluate import EnvCache, controller_overrides, run_episode
 from .learned import (
@@ -117,22 +118,13 @@ class RunConfig:
 
 
 def config_names() -> list[str]:
-
     return preset_names("agents")
 
 
-def _raw_config(path: str | Path, seen: tuple[str, ...] = ()) -> tuple[dict[str, Any], str]:
-    """A config file's mapping with its `extends:` chain merged in (the child's keys win)."""
-
-    file = preset_path(path, "agents")
-    raw = load_yaml(file)
-    parent = raw.pop("extends", None) if isinstance(raw, dict) else None
-    if parent is None:
-        return raw, str(file)
-    if str(parent) in seen:
-        raise ConfigError("extends", f"cycle through {parent!r}", str(file))
-    base, _ = _raw_config(parent, (*seen, str(parent)))
-    return deep_merge(base, raw), str(file)
+def raw_config(path: str | Path) -> tuple[dict[str, Any], str]:
+    """A training config file's mapping with its `extends:` chain merged in (the child's keys win), and
+    the file's path."""
+    return load_extending(path, "agents"), str(preset_path(path, "agents"))
 
 
 def scenario_settings(raw: dict[str, Any], scenario: str) -> dict[str, Any]:
@@ -145,7 +137,7 @@ def scenario_settings(raw: dict[str, Any], scenario: str) -> dict[str, Any]:
 
 def load_config(path: str | Path, scenario: str | None = None) -> list[RunConfig]:
     """The runs a training config asks for: every scenario in it, or just `scenario` (scenario_settings)."""
-    raw, file = _raw_config(path)
+    raw, file = raw_config(path)
     top = Node(raw, file)
     algo = top.choice("algorithm", ALGORITHMS)
     name = top["name"]
@@ -160,7 +152,8 @@ def load_config(path: str | Path, scenario: str | None = None) -> list[RunConfig
         raise top.error("scenarios", f"no entry for scenario {scenario!r}; the file has {keys}")
     out = []
     for sc in keys:  # every entry is checked, the asked-for ones returned
-        cfg = _run_config(Node(scenario_settings(raw, sc), file, f"scenarios.{sc}."), name, algo, sc, file)
+        node = Node(scenario_settings(raw, sc), file, f"scenarios.{sc}.")
+        cfg = parse_run_config(node, name, algo, sc, file)
         if scenario in (None, sc):
             out.append(cfg)
     scenarios.done()
@@ -174,17 +167,19 @@ def run_config_with(
     """A scenario's run config with `overrides` (a mapping of its settings, merged key by key; a
     hyper-parameter set to null takes the algorithm's default) and optionally another algorithm: a
     variant of a config, e.g. one setup of scripts/bench_training.py."""
-    raw, file = _raw_config(path)
+    raw, file = raw_config(path)
     if scenario not in (raw.get("scenarios") or {}):
         raise ConfigError("scenarios", f"no entry for scenario {scenario!r}", file)
     entry = deep_merge(scenario_settings(raw, scenario), overrides)
     if algorithm is not None and algorithm not in ALGORITHMS:
         raise ConfigError("algorithm", f"expected one of {list(ALGORITHMS)}, got {algorithm!r}", file)
     node = Node(entry, file, f"scenarios.{scenario}.")
-    return _run_config(node, raw["name"], algorithm or raw["algorithm"], scenario, file)
+    return parse_run_config(node, raw["name"], algorithm or raw["algorithm"], scenario, file)
 
 
-def _run_config(c: Node, name: str, algo: str, scenario: str, source: str) -> RunConfig:
+def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) -> RunConfig:
+    """The RunConfig of one scenario entry (`c`: its merged settings), every key checked; errors name the
+    field and the file."""
     try:
         algorithm_class(algo)  # an optional extra (sbx) may be missing
     except ValueError as e:
@@ -206,10 +201,8 @@ def _run_config(c: Node, name: str, algo: str, scenario: str, source: str) -> Ru
     o = c.section("observation")
     res = c.section("residual")
     base = res["base"]
-    if base is not None and (base not in BUILTIN or base == "Zero"):
-        raise res.error(
-            "base", f"unknown base controller {base!r}; allowed: {sorted(set(BUILTIN) - {'Zero'})}"
-        )
+    if base is not None and (base not in BUILTIN or base == ZERO):
+        raise res.error("base", f"unknown base controller {base!r}; allowed: {sorted(set(BUILTIN) - {ZERO})}")
     inputs = PolicyInputs(o.integer("history", 0, 64), o.boolean("privileged_critic"), base is not None)
     hp = c.section("hyperparams")
     hyper = {k: hp[k] for k in list(hp.keys()) if hp[k] is not None}  # null: the algorithm's default
@@ -508,7 +501,7 @@ def classical_on(episodes: list, envs: EnvCache) -> dict[str, dict[str, float]]:
 def best_classical(scenario: str, results: dict[str, dict[str, float]]) -> Baseline:
     """The best classical baseline by the scenario's main metric (Zero is not a baseline)."""
     main = load_scenario(scenario).main_metric
-    name = min((n for n in results if n != "Zero"), key=lambda n: results[n][main])
+    name = min((n for n in results if n != ZERO), key=lambda n: results[n][main])
     m = results[name]
     return Baseline(name, m[main], m["effort_rms"], m["limit_cycle_amp"])
 
@@ -760,7 +753,7 @@ class TrainingRun:
             raise FileExistsError(f"{out} holds an unfinished run: continue it with --resume")
         out.mkdir(parents=True, exist_ok=True)
         classical = classical_on(self.episodes, self.envs)
-        self.baseline, self.zero = best_classical(cfg.scenario, classical), classical["Zero"]
+        self.baseline, self.zero = best_classical(cfg.scenario, classical), classical[ZERO]
         # admissible effort: relative to the best baseline, and to the base controller in residual mode
         self.effort_ref = min(
             self.baseline.effort_rms, classical[cfg.base]["effort_rms"] if cfg.base else math.inf

@@ -22,14 +22,16 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from frictiongym.envs.suites import seed_range
 from frictiongym.envs.vector import ServoVectorEnv
 
 from .base import Controller, EpisodeContext
 from .learned import policy_observation, residual_action
 from .settings import knowledge_defaults
 
-TRAINING_SEEDS = 10_000_000  # training episode seeds start here (no suite uses them)
+TRAINING_SEEDS, _LAST = seed_range("training")  # configs/suites.yaml's range: no suite or study uses it
 SEEDS_PER_RUN = 1_000_000  # run seed s owns TRAINING_SEEDS + s·SEEDS_PER_RUN ... + SEEDS_PER_RUN - 1
+RUN_SEEDS = (_LAST + 1 - TRAINING_SEEDS) // SEEDS_PER_RUN  # run seeds 0 ... RUN_SEEDS - 1 fit the range
 
 
 def episode_seed(run_seed: int, env: int, episode: int, n_envs: int) -> int:
@@ -75,6 +77,8 @@ class TrainingVecEnv(_vec_env_base()):
         overrides: dict | None,
         nthread: int = 1,
     ):
+        if not 0 <= run_seed < RUN_SEEDS:
+            raise ValueError(f"run seed {run_seed} outside 0-{RUN_SEEDS - 1} (the training seed range)")
         self.venv = ServoVectorEnv(scenario, n_envs, nthread, randomize=randomize, overrides=overrides)
         self.core, self.scenario = self.venv.core, self.venv.scenario
         self.bases = [bases() for _ in range(n_envs)] if bases is not None else None

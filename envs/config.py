@@ -121,6 +121,28 @@ def deep_merge(base: Any, over: Any) -> Any:
     return copy.deepcopy(over)
 
 
+def load_extending(
+    name_or_path: str | Path,
+    kind: str,
+    default: str | None = None,
+    combine: Callable[[dict[str, Any], dict[str, Any]], dict[str, Any]] = deep_merge,
+    _chain: tuple[Path, ...] = (),
+) -> dict[str, Any]:
+    """A YAML file of configs/<kind>/ (a name or a path) over the file its `extends:` names, recursively:
+    combine(parent, child), the child's keys win (deep_merge). Without `extends:` a file extends
+    `default` (the kind's defaults file, which itself extends nothing), or nothing. A cycle, or an
+    `extends:` that is not a name or path, is an error naming the file."""
+    path = preset_path(name_or_path, kind)
+    data = load_yaml(path)
+    parent = data.pop("extends", None if default is None or path.stem == default else default)
+    if parent is None:
+        return data
+    chain = (*_chain, path.resolve())
+    if not isinstance(parent, str) or preset_path(parent, kind).resolve() in chain:
+        raise ConfigError("extends", f"expected another {kind} file, not a cycle: {parent!r}", path.name)
+    return combine(load_extending(parent, kind, default, combine, chain), data)
+
+
 def merge(base: Mapping[str, Any], overrides: Any, prefix: str = "", source: str = "") -> dict[str, Any]:
     """Deep-merge overrides into a copy of base. Keys must exist in base (typos are errors)."""
     if overrides is None:

@@ -25,7 +25,7 @@ from .config import (
     Node,
     deep_merge,
     interval,
-    load_yaml,
+    load_extending,
     merge,
     number,
     preset_names,
@@ -432,21 +432,19 @@ def _new_reference(base: dict, extra: Mapping) -> dict | None:
     return None
 
 
-def scenario_config(name_or_path: str | Path, _chain: tuple[str, ...] = ()) -> dict[str, Any]:
-    """The scenario's YAML over what it extends (another scenario, or the defaults file)."""
-    path = preset_path(name_or_path, "scenarios")
-    data = load_yaml(path)
-    parent = data.pop("extends", None if path.stem == DEFAULTS else DEFAULTS)
-    if parent is None:
-        return data
-    if not isinstance(parent, str) or parent in (*_chain, path.stem):
-        raise ConfigError("extends", f"expected another scenario's name, not a cycle: {parent!r}", path.name)
-    base = scenario_config(parent, (*_chain, path.stem))
+def _extend(base: dict[str, Any], data: dict[str, Any]) -> dict[str, Any]:
+    """A scenario over the one it extends: deep-merged, except that a reference of another type
+    replaces the parent's instead of merging into it."""
     ref = _new_reference(base, data)
     out = deep_merge(base, data)
     if ref is not None:
         out["reference"] = ref
     return out
+
+
+def scenario_config(name_or_path: str | Path) -> dict[str, Any]:
+    """The scenario's YAML over what it extends (another scenario, or the defaults file)."""
+    return load_extending(name_or_path, "scenarios", DEFAULTS, _extend)
 
 
 def _ranges(init: Node, key: str, nv: int, bound: float) -> np.ndarray:

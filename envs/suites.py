@@ -4,12 +4,14 @@ SeedSequence/PCG64, platform independent), so every controller sees the same epi
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 from .config import ConfigError, Node, boolean, configs_dir, integer, load_yaml
 from .scenario import scenario_config, scenario_names
 
 FILE = "suites.yaml"
+RANGES = "seed_ranges"  # the file's table of seed ranges; every other top-level key is a suite
 
 
 @dataclass(frozen=True)
@@ -38,13 +40,38 @@ STRUCTURAL = ("friction_model",)  # pinned keys that change how the env is built
 
 
 def suite_names() -> list[str]:
-    return sorted(load_yaml(configs_dir() / FILE))
+    return sorted(k for k in load_yaml(configs_dir() / FILE) if k != RANGES)
+
+
+def seed_ranges() -> dict[str, tuple[int, int]]:
+    """configs/suites.yaml's seed ranges: name -> (first, last), inclusive; checked to be disjoint."""
+    node = Node(load_yaml(configs_dir() / FILE), FILE).section(RANGES)
+    out = {}
+    for name in list(node.keys()):  # a Node is read by key; it has no __iter__
+        pair = node[name]
+        if not (isinstance(pair, list) and len(pair) == 2):
+            raise node.error(name, f"expected [first, last], got {pair!r}")
+        first = node.check(integer, pair[0], node.field(f"{name}[0]"), 0)
+        out[name] = (first, node.check(integer, pair[1], node.field(f"{name}[1]"), first))
+    spans = sorted((lo, hi, name) for name, (lo, hi) in out.items())
+    for (_, hi, a), (lo, _, b) in itertools.pairwise(spans):
+        if lo <= hi:
+            raise node.error(b, f"overlaps {a}'s range")
+    return out
+
+
+def seed_range(name: str) -> tuple[int, int]:
+    """(first, last) seed of a range of configs/suites.yaml (a suite's, sim2real or training)."""
+    ranges = seed_ranges()
+    if name not in ranges:
+        raise ConfigError(f"{RANGES}.{name}", f"no seed range; the table has {sorted(ranges)}", FILE)
+    return ranges[name]
 
 
 def _suite(name: str) -> Node:
     suites = Node(load_yaml(configs_dir() / FILE), FILE)
-    if name not in suites:
-        raise ConfigError("suite", f"unknown suite {name!r}; available: {sorted(suites.keys())}", FILE)
+    if name not in suites or name == RANGES:
+        raise ConfigError("suite", f"unknown suite {name!r}; available: {suite_names()}", FILE)
     return suites.section(name)
 
 
@@ -78,5 +105,8 @@ def load_suite(name: str) -> list[Episode]:
         seeds = [s.check(integer, x, s.field(f"seeds[{i}]"), 0) for i, x in enumerate(s["seeds"])]
     else:
         raise s.error("seeds", f"expected a non-empty list or {{start, count}}, got {s['seeds']!r}")
+    lo, hi = seed_range(name)
+    if not lo <= min(seeds) <= max(seeds) <= hi:
+        raise s.error("seeds", f"{min(seeds)}-{max(seeds)} leave the suite's range [{lo}, {hi}] ({RANGES})")
     s.done()
     return [Episode(sc, seed, randomize) for sc in scenarios for seed in seeds]

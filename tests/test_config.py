@@ -5,7 +5,7 @@ import math
 import pytest
 
 from frictiongym.envs import units
-from frictiongym.envs.config import ConfigError, load_yaml, plant_names
+from frictiongym.envs.config import ConfigError, load_extending, load_yaml, plant_names
 from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.plants.params import EpisodeParams
 
@@ -75,3 +75,19 @@ def test_unit_helpers_round_trip():
     assert units.counts_to_rad(units.rad_to_counts(1.2, 16000), 16000) == pytest.approx(1.2)
     # Kang's J = 0.0212 N·m·s²/deg is 1.2147 kg·m²
     assert units.per_deg_to_per_rad(0.0212) == pytest.approx(1.21467, rel=1e-4)
+
+
+def test_one_extends_resolver_merges_parents_and_refuses_cycles(tmp_path):
+    """config.load_extending, which scenarios and training configs both use: the child's keys win over
+    its parent's, mappings merge key by key, a chain resolves to the root, and a cycle names the file."""
+    root, mid, leaf = (tmp_path / f"{n}.yaml" for n in ("root", "mid", "leaf"))
+    root.write_text("a: 1\nb: {x: 1, y: 2}\n")
+    mid.write_text(f"extends: {root}\nb: {{y: 3}}\n")
+    leaf.write_text(f"extends: {mid}\na: 5\n")
+    assert load_extending(leaf, "agents") == {"a": 5, "b": {"x": 1, "y": 3}}
+    root.write_text(f"extends: {leaf}\na: 1\n")
+    with pytest.raises(ConfigError, match=r"root\.yaml: extends: expected another agents file, not a cycle"):
+        load_extending(leaf, "agents")
+    leaf.write_text("extends: [1]\n")
+    with pytest.raises(ConfigError, match=r"leaf\.yaml: extends"):
+        load_extending(leaf, "agents")

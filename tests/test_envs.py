@@ -1,5 +1,6 @@
 """Gymnasium environments: API, determinism, robustness, vector env equivalence, suites."""
 
+import itertools
 import os
 import subprocess
 import sys
@@ -15,7 +16,7 @@ from frictiongym.envs import env_id
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.scenario import load_scenario, scenario_names
 from frictiongym.envs.servo_env import ServoEnv
-from frictiongym.envs.suites import load_suite, suite_names
+from frictiongym.envs.suites import load_suite, seed_ranges, suite_names
 from frictiongym.envs.vector import ServoVectorEnv, make_sb3_vec_env
 
 
@@ -237,10 +238,21 @@ def test_suites_are_defined_and_test_seeds_are_held_out():
 
 def test_every_seed_range_is_disjoint():
     """configs/suites.yaml's table: the suites, the sim-to-real study and training never share a seed,
-    so no number a study reports comes from an episode another one selected or trained on."""
-    from frictiongym.agents import sim2real, training
+    so no number a study reports comes from an episode another one selected or trained on. Each user
+    reads its range from the table."""
+    from frictiongym.agents import sim2real, training, training_env
 
+    table = seed_ranges()
+    assert set(table) == {*suite_names(), "sim2real", "training"}
+    spans = sorted(table.values())
+    assert all(a[1] < b[0] for a, b in itertools.pairwise(spans))
+    assert (sim2real.SEEDS, sim2real.SEED_RANGE[1] - 1) == table["sim2real"] and sim2real.SET_SPAN == 10_000
+    assert table["training"][0] == training.TRAINING_SEEDS
+    last = training_env.episode_seed(training_env.RUN_SEEDS - 1, 0, training_env.SEEDS_PER_RUN - 1, 1)
+    assert last == table["training"][1]  # the last run seed's last episode is the range's last seed
     ranges = {name: {e.seed for e in load_suite(name)} for name in suite_names()}
+    for name, seeds in ranges.items():
+        assert table[name][0] <= min(seeds) and max(seeds) <= table[name][1], name
     lo, hi = sim2real.SEED_RANGE
     for name, seeds in ranges.items():
         assert not any(lo <= s < hi for s in seeds), name
@@ -255,6 +267,20 @@ def test_every_seed_range_is_disjoint():
     assert sim2real.SEEDS + 2 * span + span - 1 < hi < training.TRAINING_SEEDS
     with pytest.raises(ValueError, match="seed sets"):
         sim2real.plan("kang_regulation", span + 1, 2, 0)
+
+
+def test_a_seed_outside_its_range_or_overlapping_ranges_are_errors(monkeypatch):
+    from frictiongym.envs import suites
+
+    raw = suites.load_yaml(suites.configs_dir() / suites.FILE)
+    moved = {**raw, "test": {**raw["test"], "seeds": [1500]}}  # the default suite's range
+    monkeypatch.setattr(suites, "load_yaml", lambda *_a, **_k: moved)
+    with pytest.raises(ConfigError, match=r"test\.seeds: 1500-1500 leave the suite's range \[900000"):
+        load_suite("test")
+    overlap = {**raw, "seed_ranges": {**raw["seed_ranges"], "test": [1999, 1000000]}}
+    monkeypatch.setattr(suites, "load_yaml", lambda *_a, **_k: overlap)
+    with pytest.raises(ConfigError, match=r"seed_ranges.* overlaps"):
+        seed_ranges()
 
 
 def test_rgb_render_headless_and_episode_plot(tmp_path):
