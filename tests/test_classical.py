@@ -8,6 +8,7 @@ import pytest
 from frictiongym.agents.base import EpisodeContext
 from frictiongym.agents.classical import PD, PID, RDFC, Southward, design_pid
 from frictiongym.agents.evaluate import evaluate, run_episode
+from frictiongym.envs.config import ConfigError
 from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
@@ -118,3 +119,19 @@ def test_coulomb_viscous_feedforward_reduces_reversal_errors():
     pd, ff = run_episode(PD(), ep), run_episode(CoulombViscousFF(), ep)
     assert ff.metrics["reversal_peak_error"] < 0.5 * pd.metrics["reversal_peak_error"]
     assert ff.metrics["iae"] < pd.metrics["iae"]
+
+
+def test_controllers_yaml_unknown_keys_name_the_file(monkeypatch):
+    from frictiongym.agents import classical, settings
+
+    assert classical.PIDSettings.SECTION in settings.FamilySettings.sections
+    raw = settings.load_yaml(settings.configs_dir() / settings.FILE)
+    for bad, match in (
+        ({**raw, "southwrd": {}}, r"controllers\.yaml: southwrd: unknown section"),
+        ({**raw, "pid": {**raw["pid"], "zta": 1.0}}, r"controllers\.yaml: pid\.zta: unknown key"),
+    ):
+        monkeypatch.setattr(settings, "load_yaml", lambda *_a, bad=bad, **_k: bad)
+        settings._raw.cache_clear()
+        with pytest.raises(ConfigError, match=match):
+            settings.read("pid", lambda s: (s.get("integrator_pole_ratio"), s.get("loops")))
+    settings._raw.cache_clear()

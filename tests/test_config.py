@@ -91,3 +91,10 @@ def test_one_extends_resolver_merges_parents_and_refuses_cycles(tmp_path):
     leaf.write_text("extends: [1]\n")
     with pytest.raises(ConfigError, match=r"leaf\.yaml: extends"):
         load_extending(leaf, "agents")
+
+
+def test_unknown_yaml_key_names_the_file():
+    with pytest.raises(ConfigError, match=r"kang_robot\.yaml: rotor\.inertia"):
+        plant_spec("kang_robot", {"rotor": {"inertia": 1.0}})
+    with pytest.raises(ConfigError, match=r"configuration\.backlash_device"):
+        plant_spec("m220", {"configuration": {"backlash_device": "no"}})

@@ -2,6 +2,7 @@
 
 import itertools
 import os
+import pickle
 import subprocess
 import sys
 import warnings
@@ -293,3 +294,84 @@ def test_rgb_render_headless_and_episode_plot(tmp_path):
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
     subprocess.run([sys.executable, "-c", code], check=True, env=env, timeout=120)
     assert (tmp_path / "ep.png").stat().st_size > 10_000
+
+
+def test_huge_state_ends_the_episode_as_diverged():
+    with pytest.raises(ConfigError, match=r"initial_state.qpos\[0\]\[0\]: 20000000000.0 is outside"):
+        ServoEnv("kang_regulation", overrides={"initial_state": {"qpos": [[2e10, 2e10]]}})  # the envelope
+    env = ServoEnv("kang_regulation")
+    env.reset(seed=0)
+    env.core.backend.qpos[:] = 2e10  # a state no scenario may start from, e.g. after a numerical blow-up
+    _, reward, term, _, info = env.step(np.zeros(1, np.float32))
+    assert term and info["diverged"] and np.isfinite(reward)
+    assert reward < -(env.scenario.reward_weights["tracking"] * 1e6)  # below any step that did not diverge
+
+
+@pytest.mark.parametrize("bad", ["x", b"1", 1j, True, np.array([]), np.zeros(2), np.zeros((3, 2))])
+def test_actions_other_than_one_finite_real_are_clear_errors(bad):
+    env = ServoEnv("kang_regulation")
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="action"):
+        env.step(bad)
+
+
+def test_step_before_reset_is_an_error():
+    with pytest.raises(RuntimeError, match="reset"):
+        ServoEnv("kang_regulation").step(np.zeros(1))
+    with pytest.raises(RuntimeError, match="reset"):
+        ServoVectorEnv("kang_regulation", 2).step(np.zeros(2))
+
+
+def test_vector_env_seeds_checks_failed_reset_and_pickling():
+    venv = ServoVectorEnv("kang_regulation", 2)
+    _, info = venv.reset(seed=2**64)  # works as in the single env
+    assert list(info["episode_seed"]) == [2**64, 2**64 + 1]
+    venv.reset(seed=5)
+    for bad in (1.5, -1, True):
+        with pytest.raises(ValueError, match="seed"):
+            venv.reset(seed=bad)
+    assert np.array_equal(venv.step(np.zeros(2))[0], _stepped_once(5))  # failed resets changed nothing
+    with pytest.raises(TypeError, match="cannot be pickled"):
+        pickle.dumps(venv)
+    with pytest.raises(ValueError, match="num_envs"):
+        ServoVectorEnv("kang_regulation", 2.5)
+
+
+def _stepped_once(seed: int) -> np.ndarray:
+    venv = ServoVectorEnv("kang_regulation", 2)
+    venv.reset(seed=seed)
+    return venv.step(np.zeros(2))[0]
+
+
+def test_make_vec_uses_the_batched_env_and_matches_single_envs():
+    venv = gym.make_vec("frictiongym/KangRobot-v0", num_envs=2, vectorization_mode="vector_entry_point")
+    assert isinstance(venv, ServoVectorEnv)
+    obs, _ = venv.reset(seed=3)
+    single = ServoEnv("kang_regulation")
+    assert np.array_equal(obs[1], single.reset(seed=4)[0])
+
+
+def test_vector_env_reports_divergence_and_writes_no_mujoco_log(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # MuJoCo would write MUJOCO_LOG.TXT here
+    venv = ServoVectorEnv("kang_regulation", 2)
+    venv.reset(seed=0)
+    venv.core.backend.qpos[:] = 2e10  # a blown-up state (no scenario may start from it)
+    _, reward, term, _, info = venv.step(np.zeros(2))
+    assert term.all() and info["diverged"].all() and np.isfinite(reward).all()
+    assert not (tmp_path / "MUJOCO_LOG.TXT").exists()
+
+
+@pytest.mark.parametrize("bad", [np.zeros((2, 2)), np.zeros(3), "ab", np.array([1j, 0])])
+def test_vector_env_rejects_anything_but_one_real_per_env(bad):
+    venv = ServoVectorEnv("kang_regulation", 2)
+    venv.reset(seed=0)
+    with pytest.raises(ValueError, match="action"):
+        venv.step(bad)
+
+
+def test_sb3_adapter_step_before_reset_is_an_error():
+    from frictiongym.envs.vector import make_sb3_vec_env
+
+    venv = make_sb3_vec_env("kang_regulation", 2)
+    with pytest.raises(RuntimeError, match="reset"):
+        venv.step(np.zeros((2, 1)))

@@ -147,3 +147,17 @@ def test_the_frictiongym_command_lists_every_front_end_and_refuses_unknown_ones(
     assert cli.main(["leaderbord"]) == 2
     assert "unknown command 'leaderbord'" in capsys.readouterr().err
     assert cli.main([]) == 2
+
+
+@pytest.mark.slow
+def test_check_draws_script_reports_zero_rejections():
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "scripts/check_draws.py"), "--seeds", "300", "--workers", "1"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    rows = [ln.split() for ln in proc.stdout.splitlines()[1:]]
+    assert {r[1] for r in rows} >= {"kang_robot", "m220", "flexible_servo", "kang_regulation"}
+    assert all(r[2:4] == ["300", "0"] for r in rows)

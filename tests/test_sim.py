@@ -7,6 +7,7 @@ from mujoco.batch import Batch
 
 from frictiongym.envs.plants.params import EpisodeParams, apply_batch
 from frictiongym.envs.plants.sim import PlantSim
+from frictiongym.envs.servo_env import ServoEnv
 
 
 @pytest.mark.parametrize("delay_steps", [0, 1, 7, 40])
@@ -157,3 +158,14 @@ def test_jitter_delays_each_command_by_tau_plus_a_seeded_draw():
     assert len(a) == 12 and set(a) <= {2, 3, 4, 5}  # τ + j, j in [0, 3] steps
     assert len(set(a)) > 1  # it does vary
     assert a != onsets(6)
+
+
+def test_plantsim_noise_matches_the_env_for_the_same_seed():
+    ov = {"sensors": {"encoder": {"noise_std_deg": 0.01}}}
+    env = ServoEnv("kang_regulation_20deg", overrides={"plant_overrides": ov})
+    env.reset(seed=4)
+    obs, *_ = env.step(np.zeros(1, np.float32))
+    sim = PlantSim("kang_robot", ov)
+    sim.reset(qpos=[0.349066], seed=4)
+    r = sim.step(0.0)
+    assert obs[0] == np.float32(r.measurement[0] / env.scenario.output_scale)

@@ -14,6 +14,7 @@ from frictiongym.agents.reproduce import friction_phenomena as phen
 from frictiongym.agents.reproduce.kang1998 import EPISODE
 from frictiongym.envs.friction import KANG_STICK_BAND, MAXWELL_SLIP_LENGTHS, elements, joint_levels
 from frictiongym.envs.plants import plant_spec
+from frictiongym.envs.plants.sim import PlantSim
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.vector import ServoVectorEnv
 
@@ -202,3 +203,14 @@ def test_the_reference_only_structures_follow_their_equations():
     np.testing.assert_allclose(
         r["friction"][settled], -(p.fc + p.sigma2 * r["v"][settled]) + p.bias, rtol=1e-6, atol=1e-9
     )
+
+
+def test_coulomb_model_keeps_the_viscous_term():
+    """3 N·m on Kang's rotor with Coulomb + viscous (σ2 = 0.86 N·m·s/rad): steady speed
+    (3 - T_C+)/σ2 ≈ 2.0 rad/s, reached within 10 s (it was 14 rad/s without the viscous term)."""
+    sim = PlantSim("kang_robot", friction_model="coulomb")
+    sim.reset()
+    for _ in range(500):
+        r = sim.step(3.0)
+    p = sim.spec.drive_friction
+    assert r.qvel[0] == pytest.approx((3.0 - p.levels()["coulomb_pos"]) / p.sigma2, rel=0.02)
