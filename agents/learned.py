@@ -5,7 +5,7 @@ classical base controller and with frozen observation-normalisation statistics.
 The model's input is the env's observation (with the history / privileged blocks the model was trained
 with, which the controller asks the env for) followed, in residual mode, by the base controller's action.
 `policy_observation` and `residual_action` are the one implementation of that input and of the combined
-action, used by the training wrapper (agents/training.py) and by SB3Policy alike.
+action, used by the training wrapper (agents/training/) and by SB3Policy alike.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ class PolicyInputs:
 
     history: past (readings, action) samples the env appends (a delay needs a memory).
     privileged: the env appends ground truth (true output, friction, bristle force); only the critic reads
-        it (asymmetric actor-critic, agents/training.py), the actor's features drop it.
+        it (asymmetric actor-critic, agents/training/), the actor's features drop it.
     base_action: the residual's base controller action is appended (residual mode).
     """
 
@@ -102,7 +102,7 @@ def sha256(path: str | Path) -> str:
 
 class LearnedNeeds:
     """What a learned controller brings into its env: its base's hardware and its observation blocks. Shared
-    by SB3Policy and the training env (agents/training.py), so both build the same env."""
+    by SB3Policy and the training env (agents/training/), so both build the same env."""
 
     inputs: PolicyInputs
     base: Controller | None

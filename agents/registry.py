@@ -20,15 +20,15 @@ from functools import cache, partial
 from importlib.metadata import entry_points
 from pathlib import Path
 
-from frictiongym.envs.config import Node, load_yaml
+from frictiongym.envs.config import ConfigError
 
 from .base import ZERO, Controller, Zero
 from .classical import PD, PID, RDFC, CoulombViscousFF, LabPD, LuGreObserver, Southward, StateFeedback
-from .learned import PolicyInputs, SB3Policy
+from .learned import SB3Policy
 from .limits import Ideal, Oracle
+from .manifest import MANIFEST, Manifest
 
 ENTRY_POINT_GROUP = "frictiongym.controllers"
-MANIFEST = "manifest.yaml"
 
 BUILTIN: dict[str, Callable[[], Controller]] = {
     ZERO: Zero,
@@ -88,41 +88,27 @@ def model_dirs(paths: Sequence[str | Path]) -> list[Path]:
 
 def model_factory(folder: Path) -> tuple[str, Callable[[], Controller]]:
     """(name, factory) of a saved model's folder, checked against its manifest."""
-
-    m = Node(load_yaml(folder / MANIFEST), str(folder / MANIFEST))
-    name, algo = m["name"], m["algorithm"]
-    if not isinstance(name, str) or not name or not isinstance(algo, str):
-        raise ValueError(f"{folder / MANIFEST}: name and algorithm must be non-empty strings")
-    files = {"model": m.get("model", "model.zip"), "normalizer": m.get("normalizer")}
-    for key, file in files.items():
-        if file is not None and not (folder / file).is_file():
-            raise ValueError(f"{folder / MANIFEST}: {key} file {file} not found")
-    base = m.get("base_controller")
+    m = Manifest.read(folder)
+    base = m.base_controller
     if base is not None and base not in BUILTIN:
-        raise ValueError(f"{folder / MANIFEST}: base_controller {base!r} is not one of {sorted(BUILTIN)}")
-    i = m.section("inputs", optional=True)
-    inputs = PolicyInputs(
-        i.integer("history", 0, default=0),
-        i.boolean("privileged", default=False),
-        i.boolean("base_action", default=base is not None),
-    )
-    alpha = m.positive("alpha", 1.0, default=1.0)
-    plants = tuple(m.get("plants") or ())
-    norm = folder / files["normalizer"] if files["normalizer"] else None
+        raise ConfigError(
+            "base_controller", f"{base!r} is not one of {sorted(BUILTIN)}", str(folder / MANIFEST)
+        )
+    norm = folder / m.normalizer if m.normalizer else None
 
     def factory() -> Controller:
         return SB3Policy.load(
-            folder / files["model"],
-            algo,
-            plants,
-            name,
+            folder / m.model,
+            m.algorithm,
+            m.plants,
+            m.name,
             normalizer=norm,
-            inputs=inputs,
+            inputs=m.policy_inputs,
             base=BUILTIN[base]() if base is not None else None,
-            alpha=alpha,
+            alpha=m.alpha,
         )
 
-    return name, factory
+    return m.name, factory
 
 
 def available(models: Sequence[str | Path] = ()) -> dict[str, Callable[[], Controller]]:

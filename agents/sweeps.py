@@ -1,5 +1,5 @@
 """Training sweeps on Ray Tune (scripts/train.py --sweep): several seeds and a grid, or an Optuna search, over
-values of a training config. Every trial is a normal training run (agents/training.py) that writes its
+values of a training config. Every trial is a normal training run (agents/training/) that writes its
 own model folder and manifest and reports its validation main metric to Tune after every evaluation.
 The same sweep runs on a laptop (a local Ray) and on a cluster (--address).
 

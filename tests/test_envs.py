@@ -241,7 +241,8 @@ def test_every_seed_range_is_disjoint():
     """configs/suites.yaml's table: the suites, the sim-to-real study and training never share a seed,
     so no number a study reports comes from an episode another one selected or trained on. Each user
     reads its range from the table."""
-    from frictiongym.agents import sim2real, training, training_env
+    from frictiongym.agents import sim2real, training
+    from frictiongym.agents.training import vec_env as training_env
 
     table = seed_ranges()
     assert set(table) == {*suite_names(), "sim2real", "training"}

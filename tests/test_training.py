@@ -34,7 +34,7 @@ from frictiongym.agents.training import (
     training_env_kwargs,
     validation_episodes,
 )
-from frictiongym.agents.training_env import SEEDS_PER_RUN, TRAINING_SEEDS, episode_seed
+from frictiongym.agents.training.vec_env import SEEDS_PER_RUN, TRAINING_SEEDS, episode_seed
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.suites import load_suite
 

@@ -1,7 +1,7 @@
 """The training envs of one run, stepped together on the batched core (one mujoco.batch.Batch).
 
 TrainingVecEnv is a stable-baselines3 VecEnv of n_envs episodes of the run's scenario, each as a learned
-compensator sees it (agents/training.py's ResidualEnv): in residual mode every env's own base controller
+compensator sees it (agents/training/env.py's ResidualEnv): in residual mode every env's own base controller
 runs in the loop (u = clip(u_base + α·a), learned.residual_action) and the observation ends with its action
 (learned.policy_observation). It behaves as SB3's DummyVecEnv over n such single envs (same-step
 autoreset, terminal_observation, TimeLimit.truncated, float32 rewards), bit for bit (tests/test_training.py
@@ -25,9 +25,9 @@ from gymnasium import spaces
 from frictiongym.envs.suites import seed_range
 from frictiongym.envs.vector import ServoVectorEnv
 
-from .base import Controller, EpisodeContext
-from .learned import policy_observation, residual_action
-from .settings import knowledge_defaults
+from ..base import Controller, EpisodeContext
+from ..learned import policy_observation, residual_action
+from ..settings import knowledge_defaults
 
 TRAINING_SEEDS, _LAST = seed_range("training")  # configs/suites.yaml's range: no suite or study uses it
 SEEDS_PER_RUN = 1_000_000  # run seed s owns TRAINING_SEEDS + s·SEEDS_PER_RUN ... + SEEDS_PER_RUN - 1

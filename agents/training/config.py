@@ -1,0 +1,261 @@
+"""Training configs (configs/agents/<name>.yaml, rl-zoo style): `defaults` and per-scenario entries over
+configs/agents/_defaults.yaml, `extends:` chains, every key checked into a RunConfig (errors name the file
+and field); the algorithms and their update-to-data schedule."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import inspect
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from frictiongym.envs.config import (
+    ConfigError,
+    Node,
+    configs_dir,
+    deep_merge,
+    load_extending,
+    load_yaml,
+    preset_names,
+    preset_path,
+)
+from frictiongym.envs.plants.spec import RANDOMIZATION_KEYS
+from frictiongym.envs.scenario import load_scenario
+
+from ..base import ZERO
+from ..learned import (
+    PolicyInputs,
+    algorithm_class,
+)
+from ..registry import BUILTIN
+
+VALIDATION_SUITE = "validation"
+ASYMMETRIC = ("SAC", "TD3", "TQC", "CrossQ")  # the privileged critic (agents/asymmetric.py)
+JAX = ("sbx.SAC", "sbx.TQC", "sbx.CrossQ")  # sbx's JAX learners (the optional sbx extra)
+OFF_POLICY = (*ASYMMETRIC, *JAX)  # replay-buffer learners: update_to_data applies
+ALGORITHMS = (*OFF_POLICY, "PPO", "RecurrentPPO")
+REWARD_TERMS = ("tracking", "effort", "smoothness")
+ACTIVATIONS = ("relu", "tanh", "elu", "leaky_relu")
+
+
+# ------------------------------------------------------------------------------------------- config
+@dataclass(frozen=True)
+class RunConfig:
+    """One scenario's resolved training settings (defaults + the scenario's entry)."""
+
+    name: str  # leaderboard name prefix; the model is called f"{name}-{scenario}-s{seed}"
+    algorithm: str
+    scenario: str
+    total_timesteps: int
+    n_envs: int
+    update_to_data: float | None  # gradient steps per env step (off-policy); None: hyperparams' own
+    randomize: bool
+    randomization: dict[str, tuple[float, float]]  # replaces the plant's ranges key by key
+    reward: dict[str, float]  # scenario reward weights replaced (tracking, effort, smoothness)
+    inputs: PolicyInputs
+    base: str | None  # registered controller name (residual mode) or None
+    alpha: float  # residual authority, fraction of the full command range
+    initial_std: float  # initial action std of the (residual) policy, in action units
+    normalize_observation: bool
+    normalize_reward: bool
+    eval_every_steps: int
+    eval_episodes: int  # the first n of the scenario's validation-suite episodes
+    max_effort_ratio: float  # selection: effort_rms <= ratio · best classical baseline's (validation)
+    max_wall_time_s: float  # the run stops (and says so in its manifest) after this wall time
+    hyperparams: dict[str, Any] = field(default_factory=dict)  # the algorithm's keyword arguments
+    source: str = ""  # the config file
+
+    def as_dict(self) -> dict[str, Any]:
+        d = dataclasses.asdict(self)
+        d["randomization"] = {k: list(v) for k, v in self.randomization.items()}
+        return d
+
+
+def config_names() -> list[str]:
+    return preset_names("agents")
+
+
+def raw_config(path: str | Path) -> tuple[dict[str, Any], str]:
+    """A training config file's mapping with its `extends:` chain merged in (the child's keys win), and
+    the file's path."""
+    return load_extending(path, "agents"), str(preset_path(path, "agents"))
+
+
+def scenario_settings(raw: dict[str, Any], scenario: str) -> dict[str, Any]:
+    """A scenario's settings in a (merged) config file: configs/agents/_defaults.yaml, then the file's
+    `defaults`, then its scenario entry."""
+
+    defaults = deep_merge(load_yaml(configs_dir() / "agents" / "_defaults.yaml"), raw.get("defaults") or {})
+    return copy.deepcopy(deep_merge(defaults, raw["scenarios"][scenario]))  # the caller may edit it
+
+
+def load_config(path: str | Path, scenario: str | None = None) -> list[RunConfig]:
+    """The runs a training config asks for: every scenario in it, or just `scenario` (scenario_settings)."""
+    raw, file = raw_config(path)
+    top = Node(raw, file)
+    algo = top.choice("algorithm", ALGORITHMS)
+    name = top["name"]
+    if not isinstance(name, str) or not name.replace("-", "").replace("_", "").isalnum():
+        raise top.error("name", f"expected a name of letters, digits, '-' and '_', got {name!r}")
+    top.get("defaults")  # read through scenario_settings; marks the key as known for top.done()
+    scenarios = top.section("scenarios")
+    keys = [k for k in list(scenarios.keys()) if scenarios[k] is not None]  # null: an entry left out
+    if not keys:
+        raise top.error("scenarios", "expected at least one scenario")
+    if scenario is not None and scenario not in keys:
+        raise top.error("scenarios", f"no entry for scenario {scenario!r}; the file has {keys}")
+    out = []
+    for sc in keys:  # every entry is checked, the asked-for ones returned
+        node = Node(scenario_settings(raw, sc), file, f"scenarios.{sc}.")
+        cfg = parse_run_config(node, name, algo, sc, file)
+        if scenario in (None, sc):
+            out.append(cfg)
+    scenarios.done()
+    top.done()
+    return out
+
+
+def run_config_with(
+    path: str | Path, scenario: str, overrides: dict[str, Any], algorithm: str | None = None
+) -> RunConfig:
+    """A scenario's run config with `overrides` (a mapping of its settings, merged key by key; a
+    hyper-parameter set to null takes the algorithm's default) and optionally another algorithm: a
+    variant of a config, e.g. one setup of scripts/bench_training.py."""
+    raw, file = raw_config(path)
+    if scenario not in (raw.get("scenarios") or {}):
+        raise ConfigError("scenarios", f"no entry for scenario {scenario!r}", file)
+    entry = deep_merge(scenario_settings(raw, scenario), overrides)
+    if algorithm is not None and algorithm not in ALGORITHMS:
+        raise ConfigError("algorithm", f"expected one of {list(ALGORITHMS)}, got {algorithm!r}", file)
+    node = Node(entry, file, f"scenarios.{scenario}.")
+    return parse_run_config(node, raw["name"], algorithm or raw["algorithm"], scenario, file)
+
+
+def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) -> RunConfig:
+    """The RunConfig of one scenario entry (`c`: its merged settings), every key checked; errors name the
+    field and the file."""
+    try:
+        algorithm_class(algo)  # an optional extra (sbx) may be missing
+    except ValueError as e:
+        raise ConfigError("algorithm", str(e), source) from None
+    if load_scenario(scenario).held_out:  # (an unknown scenario is an error naming the available ones)
+        raise ConfigError(
+            f"scenarios.{scenario}",
+            "is a held-out (generalisation) scenario: it is never trained or selected on",
+            source,
+        )
+    r = c.section("randomization")
+    ranges = {}
+    for key in list(r.keys()):
+        if key not in RANDOMIZATION_KEYS:
+            raise r.error(key, f"unknown randomization key; allowed: {sorted(RANDOMIZATION_KEYS)}")
+        ranges[key] = r.interval(key, *RANDOMIZATION_KEYS[key])
+    w = c.section("reward")
+    reward = {k: w.nonneg(k) for k in REWARD_TERMS if k in w}
+    o = c.section("observation")
+    res = c.section("residual")
+    base = res["base"]
+    if base is not None and (base not in BUILTIN or base == ZERO):
+        raise res.error("base", f"unknown base controller {base!r}; allowed: {sorted(set(BUILTIN) - {ZERO})}")
+    inputs = PolicyInputs(o.integer("history", 0, 64), o.boolean("privileged_critic"), base is not None)
+    hp = c.section("hyperparams")
+    hyper = {k: hp[k] for k in list(hp.keys()) if hp[k] is not None}  # null: the algorithm's default
+    _check_hyperparams(algo, hyper, hp)
+    warmup = hyper.get("learning_starts", 100) > 0 and not (
+        hyper.get("use_sde") and hyper.get("use_sde_at_warmup")
+    )
+    if base is not None and algo in OFF_POLICY and warmup:
+        raise hp.error(
+            "learning_starts",
+            "a residual starts at zero output: set learning_starts: 0 (no uniform random actions at "
+            "full authority), or use_sde with use_sde_at_warmup",
+        )
+    if inputs.privileged and algo not in ASYMMETRIC:
+        raise o.error(
+            "privileged_critic",
+            f"asymmetric actor-critic is implemented for {', '.join(ASYMMETRIC)}, not {algo}",
+        )
+    n_envs = c.integer("n_envs", 1, 64)
+    utd = None if c.get("update_to_data") is None else c.positive("update_to_data", 64.0)
+    if utd is not None:
+        if algo not in OFF_POLICY:
+            raise c.error("update_to_data", f"applies to {', '.join(OFF_POLICY)}, not {algo}: set it to null")
+        for key in ("train_freq", "gradient_steps"):
+            if key in hyper:
+                raise hp.error(key, "update_to_data sets it (with n_envs): give one of the two, not both")
+        try:
+            sb3_schedule(utd, n_envs)
+        except ValueError as e:
+            raise c.error("update_to_data", str(e)) from None
+    n = c.section("normalize")
+    v = c.section("validation")
+    cfg = RunConfig(
+        name=name,
+        algorithm=algo,
+        scenario=scenario,
+        total_timesteps=c.integer("total_timesteps", 1, 10**8),
+        n_envs=n_envs,
+        update_to_data=utd,
+        randomize=c.boolean("randomize"),
+        randomization=ranges,
+        reward=reward,
+        inputs=inputs,
+        base=base,
+        alpha=res.positive("alpha", 1.0) if base is not None else 1.0,
+        initial_std=c.positive("initial_std", 1.0),
+        normalize_observation=n.boolean("observation"),
+        normalize_reward=n.boolean("reward"),
+        eval_every_steps=v.integer("every_steps", 1),
+        eval_episodes=v.integer("episodes", 1, 10_000),
+        max_effort_ratio=v.positive("max_effort_ratio"),
+        max_wall_time_s=c.positive("max_wall_time_s"),
+        hyperparams=hyper,
+        source=source,
+    )
+    if base is None:
+        res.get("alpha")  # read (unused without a base)
+    for node in (r, w, o, res, hp, n, v, c):
+        node.done()
+    return cfg
+
+
+def sb3_schedule(update_to_data: float, n_envs: int) -> tuple[int, int]:
+    """SB3's (train_freq in vector steps, gradient_steps) for `update_to_data` gradient steps per env step
+    with n_envs envs (one vector step = n_envs env steps): g = ratio·n_envs gradient steps after every
+    vector step if g >= 1, else one after every 1/g vector steps; either must be a whole number."""
+    g = update_to_data * n_envs
+    whole = round(g) if g >= 1 else round(1 / g)
+    if abs((g if g >= 1 else 1 / g) - whole) > 1e-9 * whole:
+        raise ValueError(
+            f"{update_to_data} x n_envs {n_envs} = {g:.6g} gradient steps per vector step: it, or its "
+            "inverse, must be a whole number"
+        )
+    return (1, whole) if g >= 1 else (whole, 1)
+
+
+def _check_hyperparams(algo: str, hyper: dict[str, Any], node: Node) -> None:
+    """Every hyper-parameter is a keyword of the algorithm's constructor (or one of ours, below)."""
+    ours = {"action_noise_std"}
+    params = set(inspect.signature(algorithm_class(algo).__init__).parameters) - {"self", "policy", "env"}
+    params -= {"seed", "device", "tensorboard_log", "verbose", "_init_setup_model"}
+    for key in hyper:
+        if key not in params | ours:
+            raise node.error(key, f"not a hyper-parameter of {algo}; allowed: {sorted(params | ours)}")
+    pk = hyper.get("policy_kwargs", {})
+    if not isinstance(pk, dict):
+        raise node.error("policy_kwargs", f"expected a mapping, got {pk!r}")
+    act = pk.get("activation_fn")
+    if act is not None and act not in ACTIVATIONS:
+        raise node.error("policy_kwargs.activation_fn", f"expected one of {list(ACTIVATIONS)}, got {act!r}")
+
+
+def scenario_overrides(cfg: RunConfig) -> dict[str, Any]:
+    """The scenario overrides of the run's training env (before the base controller's hardware)."""
+    out: dict[str, Any] = {}
+    if cfg.randomization:
+        out["plant_overrides"] = {"randomization": {k: list(v) for k, v in cfg.randomization.items()}}
+    if cfg.reward:
+        out["reward"] = dict(cfg.reward)
+    return out

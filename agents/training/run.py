@@ -1,0 +1,372 @@
+"""One training run (config, scenario, seed) into a model folder, resumable; many runs on a process pool;
+the exported folder the leaderboard loads."""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+import math
+import multiprocessing as mp
+import os
+import shutil
+import sys
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from pathlib import Path
+from typing import Any
+
+from frictiongym.envs.config import (
+    ConfigError,
+)
+from frictiongym.envs.records import atomic_text, atomic_write, command_line, csv_text
+from frictiongym.envs.scenario import load_scenario
+
+from ..base import ZERO
+from ..engine import init_worker, provenance, stop_workers
+from ..evaluate import EnvCache
+from ..learned import (
+    algorithm_class,
+)
+from ..manifest import MANIFEST, MODEL, NORMALIZER, Manifest
+from .config import VALIDATION_SUITE, RunConfig
+from .env import make_training_env
+from .model import build_model
+from .validation import (
+    Baseline,
+    PendingEvaluation,
+    Snapshot,
+    best_classical,
+    classical_on,
+    evaluate_snapshot,
+    gradient_steps,
+    validation_episodes,
+)
+from .vec_env import SEEDS_PER_RUN, TRAINING_SEEDS
+
+
+class TrainingRun:
+    """One (config, scenario, seed) run into `out`, resumable from out/checkpoint."""
+
+    def __init__(
+        self,
+        cfg: RunConfig,
+        seed: int,
+        out: Path,
+        command: str,
+        progress: bool = True,
+        parallel_validation: bool = False,
+    ):
+        self.cfg, self.seed, self.out, self.command, self.progress = cfg, seed, Path(out), command, progress
+        # validation in a worker process on the other core (scripts/train.py's runs), with the same results
+        # as in turn (the same saved snapshot is evaluated). The worker is spawned: a calling script needs
+        # multiprocessing's `if __name__ == "__main__":` guard; a daemonic pool worker may not have children.
+        self.parallel_validation = parallel_validation and not mp.current_process().daemon
+        self.pool: ProcessPoolExecutor | None = None
+        self.pending: list[PendingEvaluation] = []
+        self.name = f"{cfg.name}-{cfg.scenario}-s{seed}"  # unique across a config's scenarios
+        self.episodes = validation_episodes(cfg.scenario)[: cfg.eval_episodes]
+        if not self.episodes:
+            raise ConfigError("scenario", f"{cfg.scenario} is not in the {VALIDATION_SUITE} suite")
+        self.main = load_scenario(cfg.scenario).main_metric
+        self.envs = EnvCache()
+        self.history: list[dict[str, float]] = []
+        self.best: dict[str, float] | None = None
+        self.next_eval = cfg.eval_every_steps
+        self.wall_before, self.stopped_early = 0.0, False
+        self.eval_s = 0.0  # wall time the training waited for validation (train_s = elapsed - eval_s)
+        self.stop_after_train_s: float | None = None  # also stop after this much training time (bench)
+        self.reporter: Callable[[dict[str, float]], None] | None = None  # e.g. Ray Tune's report
+        self.logger: Any = None  # the model's logger (validation metrics to TensorBoard)
+        self.last_snapshot: Snapshot | None = None  # the model of the latest validation (the checkpoint's)
+
+    def elapsed(self) -> float:
+        return self.wall_before + time.monotonic() - self.t0
+
+    # ----------------------------------------------------------------------------- evaluation
+    def train_s(self) -> float:
+        """Wall time spent training (learning and env stepping), waits for validation excluded."""
+        return self.elapsed() - self.eval_s
+
+    def validate(self, model: Any) -> Snapshot:
+        """Start the evaluation of the model as it is now (a saved snapshot, in the validation worker, or
+        here); collect() records it. Returns the snapshot (the checkpoint's model)."""
+        t0 = time.monotonic()
+        snap = Snapshot.of(model)
+        job = (self.cfg, self.name, snap, self.episodes)
+        if self.parallel_validation:
+            if self.pool is None:
+                self.pool = ProcessPoolExecutor(
+                    1, mp.get_context("spawn"), initializer=init_worker, initargs=(os.getpid(),)
+                )
+            result = self.pool.submit(evaluate_snapshot, *job)
+        else:
+            result = Future()
+            result.set_result(evaluate_snapshot(*job))
+        meta = {"step": model.num_timesteps, "gradient_steps": gradient_steps(model)}
+        self.eval_s += time.monotonic() - t0
+        meta |= {"wall_s": round(self.elapsed(), 1), "train_s": round(self.train_s(), 1)}
+        self.pending.append(PendingEvaluation(meta, snap, result))
+        self.collect(block=False)
+        return snap
+
+    def collect(self, block: bool) -> None:
+        """Record the finished evaluations in order (all of them, waiting, if block)."""
+        while self.pending and (block or self.pending[0].result.done()):
+            p = self.pending.pop(0)
+            t0 = time.monotonic()
+            try:
+                m = p.result.result()
+            except BrokenProcessPool:  # the worker died (e.g. killed): validate here from now on
+                print(f"{self.name}: the validation worker stopped; validating in turn", file=sys.stderr)
+                self.parallel_validation, self.pool = False, None
+                m = evaluate_snapshot(self.cfg, self.name, p.snapshot, self.episodes)
+            self.eval_s += time.monotonic() - t0
+            self._record(p.meta, p.snapshot, m)
+
+    def _record(self, meta: dict[str, Any], snap: Snapshot, m: dict[str, float]) -> None:
+        zero = self.zero[self.main]
+        row = {
+            **meta,
+            "main": m[self.main],
+            "score": 1.0 - m[self.main] / zero if zero > 0 else math.nan,
+            "effort_rms": m["effort_rms"],
+            "limit_cycle_amp": m["limit_cycle_amp"],
+            "iae": m["iae"],
+        }
+        row["admissible"] = float(row["effort_rms"] <= self.cfg.max_effort_ratio * self.effort_ref)
+        self.history.append(row)
+        if self.logger is not None:
+            for k in ("main", "score", "effort_rms"):
+                self.logger.record(f"validation/{k}", row[k])
+        if row["admissible"] and (self.best is None or row["main"] < self.best["main"]):
+            self.best = row
+            snap.write(self.out)
+        atomic_text(self.out / "validation.csv", csv_text(self.history))
+        if self.reporter is not None:
+            self.reporter(row)
+
+    # ----------------------------------------------------------------------------- checkpoints
+    def checkpoint(self, model: Any, snap: Snapshot) -> None:
+        """The model now (snap: its snapshot), normalizer, replay buffer and this run's state into
+        out/checkpoint, each atomically; an evaluation still running is re-run on --resume."""
+        ck = self.out / "checkpoint"
+        snap.write(ck)
+        if hasattr(model, "replay_buffer") and model.replay_buffer is not None:
+            atomic_write(ck / "replay_buffer.pkl", lambda p: model.save_replay_buffer(p))
+        self.write_state(model)
+
+    def write_state(self, model: Any) -> None:
+        state = {
+            "num_timesteps": model.num_timesteps,
+            "wall_s": self.elapsed(),
+            "history": self.history,
+            "eval_s": self.eval_s,
+            "best": self.best,
+            "next_eval": self.next_eval,
+            "episodes": model.get_env().get_attr("episodes"),
+            "pending": [p.meta for p in self.pending],  # at most the checkpoint's own model
+        }
+        atomic_text(self.out / "checkpoint" / "state.json", json.dumps(state))
+
+    # ----------------------------------------------------------------------------- the run
+    def train(self, resume: bool = False) -> dict[str, Any]:
+        """Train, select, write the model folder; returns the manifest."""
+        import torch
+        from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+
+        from .callbacks import callbacks  # stable-baselines3 (the rl extra): at training time only
+
+        torch.set_num_threads(1)
+        cfg, out = self.cfg, self.out
+        ck = out / "checkpoint"
+        if (out / MANIFEST).exists() and not resume:
+            raise FileExistsError(f"{out} holds a finished run; use another --out, or --resume to extend it")
+        if not resume and (ck / "state.json").exists():
+            raise FileExistsError(f"{out} holds an unfinished run: continue it with --resume")
+        out.mkdir(parents=True, exist_ok=True)
+        classical = classical_on(self.episodes, self.envs)
+        self.baseline, self.zero = best_classical(cfg.scenario, classical), classical[ZERO]
+        # admissible effort: relative to the best baseline, and to the base controller in residual mode
+        self.effort_ref = min(
+            self.baseline.effort_rms, classical[cfg.base]["effort_rms"] if cfg.base else math.inf
+        )
+        (out / "monitor").mkdir(exist_ok=True)
+        venv: Any = VecMonitor(make_training_env(cfg, self.seed), str(out / "monitor"))
+        gamma = cfg.hyperparams.get("gamma", 0.99)
+        state = None
+        if resume and (ck / "state.json").exists():
+            state = json.loads((ck / "state.json").read_text())
+            if (ck / NORMALIZER).exists():
+                venv = VecNormalize.load(str(ck / NORMALIZER), venv)
+                venv.training = True
+            model = algorithm_class(cfg.algorithm).load(str(ck / MODEL), env=venv, device="cpu")
+            model.tensorboard_log = str(out / "tb")
+            if (ck / "replay_buffer.pkl").exists():
+                model.load_replay_buffer(str(ck / "replay_buffer.pkl"))
+            for i, n in enumerate(state["episodes"]):
+                venv.env_method("set_episodes", n, indices=[i])
+            self.history, self.best, self.next_eval = state["history"], state["best"], state["next_eval"]
+            self.wall_before, self.eval_s = state["wall_s"], state.get("eval_s", 0.0)
+            for meta in state.get("pending", []):  # the checkpoint's model, not evaluated before the stop
+                snap = Snapshot.read(ck)
+                self._record(meta, snap, evaluate_snapshot(cfg, self.name, snap, self.episodes))
+        else:
+            if cfg.normalize_observation or cfg.normalize_reward:
+                venv = VecNormalize(
+                    venv, norm_obs=cfg.normalize_observation, norm_reward=cfg.normalize_reward, gamma=gamma
+                )
+            model = build_model(cfg, venv, self.seed, str(out / "tb"))
+        done = model.num_timesteps
+        self.t0 = time.monotonic()
+        remaining = cfg.total_timesteps - done
+        try:
+            if remaining > 0:
+                model.learn(
+                    remaining,
+                    callback=callbacks(self),
+                    reset_num_timesteps=state is None,
+                    progress_bar=self.progress,
+                    tb_log_name="run",
+                )
+                self.collect(block=True)  # so that a pending evaluation is always the checkpoint's model
+                evaluated = self.history and self.history[-1]["step"] == model.num_timesteps
+                self.checkpoint(model, Snapshot.of(model) if evaluated else self.validate(model))
+                self.collect(block=True)  # the final model's evaluation
+                self.write_state(model)
+        finally:
+            if self.pool is not None:
+                self.pool.shutdown(cancel_futures=True)
+                self.pool = None
+        if self.best is None:
+            raise RuntimeError(
+                f"{self.name}: no validation evaluation had effort_rms <= {cfg.max_effort_ratio} x "
+                f"{self.effort_ref:.4g} (the baseline's): nothing to select"
+            )
+        manifest = self.manifest(model.num_timesteps)
+        manifest.write(out)
+        plot_curve(self.history, self.baseline, self.main, out / "training_curve.png", self.name)
+        return manifest.as_dict()
+
+    def manifest(self, steps: int) -> Manifest:
+        import stable_baselines3
+
+        cfg = self.cfg
+        prov = provenance()
+        return Manifest(
+            name=self.name,
+            algorithm=cfg.algorithm,
+            model=MODEL,
+            normalizer=NORMALIZER if (self.out / NORMALIZER).exists() else None,
+            scenario=cfg.scenario,
+            plants=(load_scenario(cfg.scenario).spec.name,),
+            base_controller=cfg.base,
+            alpha=cfg.alpha,
+            inputs=cfg.inputs,
+            seed=self.seed,
+            steps=int(steps),
+            selected_step=int(self.best["step"]),
+            wall_time_s=round(self.elapsed(), 1),
+            stopped_at_wall_time_limit=self.stopped_early,
+            command=self.command,
+            package_version=prov["package_version"],
+            git_commit=prov["git_commit"],
+            stable_baselines3=stable_baselines3.__version__,
+            torch_threads=1,
+            training_seeds=(
+                f"{TRAINING_SEEDS + self.seed * SEEDS_PER_RUN} + k·{cfg.n_envs} + i (env i, episode k)"
+            ),
+            validation={
+                "suite": VALIDATION_SUITE,
+                "episodes": len(self.episodes),
+                "seeds": [e.seed for e in self.episodes],
+                "main_metric": self.main,
+                "value": self.best["main"],
+                "score": self.best["score"],
+                "effort_rms": self.best["effort_rms"],
+                "limit_cycle_amp": self.best["limit_cycle_amp"],
+                "best_classical": dataclasses.asdict(self.baseline),
+                "admissible_effort_rms": self.cfg.max_effort_ratio * self.effort_ref,
+            },
+            config={**cfg.as_dict(), "inputs": dataclasses.asdict(cfg.inputs)},
+        )
+
+
+def plot_curve(
+    history: list[dict[str, float]], baseline: Baseline, main: str, path: Path, title: str
+) -> None:
+    """Validation main metric and effort against training steps, with the best classical baseline."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    steps = [h["step"] for h in history]
+    fig, ax = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
+    ax[0].plot(steps, [h["main"] for h in history], "o-", label="policy (validation mean)")
+    ax[0].axhline(baseline.main, color="k", ls="--", label=f"{baseline.name} (best classical)")
+    ax[0].set(ylabel=main, yscale="log")
+    ax[0].legend()
+    ax[1].plot(steps, [h["effort_rms"] for h in history], "o-")
+    ax[1].axhline(baseline.effort_rms, color="k", ls="--")
+    ax[1].set(ylabel="effort_rms", xlabel="training steps")
+    ax[0].set_title(title)
+    fig.tight_layout()
+    atomic_write(path, lambda p: fig.savefig(p, dpi=90, format="png"))
+    plt.close(fig)
+
+
+# ------------------------------------------------------------------------------------------- runs
+def run_dir(out: Path, cfg: RunConfig, seed: int) -> Path:
+    return Path(out) / cfg.name / cfg.scenario / f"seed{seed}"
+
+
+EXPORTED = (MODEL, NORMALIZER, MANIFEST, "validation.csv", "training_curve.png")
+
+
+def export_model(run: Path, dest: Path) -> Path:
+    """Copy a finished run's model folder (model, statistics, manifest, validation record, curve; not the
+    checkpoint or logs) to dest/<name>/, e.g. into agents/models/headline/ to commit it."""
+    folder = Path(dest) / Manifest.read(Path(run)).name
+    folder.mkdir(parents=True, exist_ok=True)
+    for f in EXPORTED:
+        if (Path(run) / f).exists():
+            shutil.copy2(Path(run) / f, folder / f)
+    return folder
+
+
+def train_one(args: tuple[RunConfig, int, str, str, bool, bool]) -> dict[str, Any]:
+    """One run (picklable for a process pool): (config, seed, out dir, command, resume, progress), its
+    validation beside it."""
+    cfg, seed, out, command, resume, progress = args
+    with contextlib.redirect_stdout(sys.stderr) if not progress else contextlib.nullcontext():
+        return TrainingRun(cfg, seed, Path(out), command, progress, parallel_validation=True).train(resume)
+
+
+def train_many(
+    cfgs: Sequence[RunConfig], seeds: Sequence[int], out: Path, resume: bool, workers: int
+) -> list[dict[str, Any]]:
+    """Every (config, seed) run; with workers > 1 on a spawn pool, one torch thread each."""
+    command = command_line()
+    jobs = [(c, s, str(run_dir(out, c, s)), command, resume, workers == 1) for c in cfgs for s in seeds]
+    if workers == 1:
+        return [train_one(j) for j in jobs]
+    # Ctrl-C is the parent's (workers ignore it; the pool's processes are terminated); a killed parent's
+    # workers exit by themselves. The pool's processes are not daemonic, so that each run can start its
+    # validation worker on the other core (TrainingRun.parallel_validation).
+    pool = ProcessPoolExecutor(
+        workers,
+        mp.get_context("spawn"),
+        initializer=init_worker,
+        initargs=(os.getpid(),),
+        max_tasks_per_child=1,
+    )
+    try:
+        return list(pool.map(train_one, jobs))
+    except BaseException:
+        stop_workers()
+        raise
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)

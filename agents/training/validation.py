@@ -1,0 +1,156 @@
+"""Selection on the validation suite: the classical baselines on the validation episodes, snapshots of a
+model evaluated through the leaderboard's loop (in this process or a validation worker), bit for bit
+the same either way."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import pickle
+import random
+from concurrent.futures import Future
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from frictiongym.envs.config import (
+    ConfigError,
+)
+from frictiongym.envs.records import atomic_write
+from frictiongym.envs.scenario import load_scenario
+from frictiongym.envs.suites import load_suite, suite_held_out
+
+from ..base import ZERO, Controller
+from ..evaluate import EnvCache, run_episode
+from ..learned import (
+    SB3Policy,
+    algorithm_class,
+)
+from ..manifest import MODEL, NORMALIZER
+from ..registry import BUILTIN, make
+from .config import VALIDATION_SUITE, RunConfig
+
+
+# ------------------------------------------------------------------------------------------- validation
+@dataclass
+class Baseline:
+    """The best classical controller of a scenario on the validation episodes (by its main metric)."""
+
+    name: str
+    main: float
+    effort_rms: float
+    limit_cycle_amp: float
+
+
+def validation_episodes(scenario: str, suite: str = VALIDATION_SUITE) -> list:
+    """The selection episodes of a scenario: never from a held-out suite."""
+    if suite_held_out(suite):
+        raise ConfigError("suite", f"{suite} is held out: models are never selected on it")
+    return [e for e in load_suite(suite) if e.scenario == scenario]
+
+
+def evaluate_controller(controller: Controller, episodes: list, envs: EnvCache) -> dict[str, float]:
+    """Means of every metric over the episodes, through the one evaluation loop."""
+    rows = [run_episode(controller, e, envs=envs).metrics for e in episodes]
+    return {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
+
+
+def classical_on(episodes: list, envs: EnvCache) -> dict[str, dict[str, float]]:
+    """Metric means of every applicable built-in controller (Zero included) on the episodes."""
+
+    out = {}
+    for name, factory in BUILTIN.items():
+        c = factory()
+        if c.applies_to(envs.scenario(episodes[0])):
+            out[name] = evaluate_controller(c, episodes, envs)
+    return out
+
+
+def best_classical(scenario: str, results: dict[str, dict[str, float]]) -> Baseline:
+    """The best classical baseline by the scenario's main metric (Zero is not a baseline)."""
+    main = load_scenario(scenario).main_metric
+    name = min((n for n in results if n != ZERO), key=lambda n: results[n][main])
+    m = results[name]
+    return Baseline(name, m[main], m["effort_rms"], m["limit_cycle_amp"])
+
+
+def gradient_steps(model: Any) -> int:
+    """The gradient steps a model has taken (PPO's _n_updates counts epochs of minibatches)."""
+    n = int(getattr(model, "_n_updates", 0))
+    if hasattr(model, "n_epochs"):
+        return n * math.ceil(model.n_steps * model.n_envs / model.batch_size)
+    return n
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """A model as saved (model.zip bytes) with its VecNormalize's pickle (None without one): what is
+    evaluated, kept as the best model, and checkpointed."""
+
+    model: bytes
+    normalizer: bytes | None
+
+    @classmethod
+    def of(cls, model: Any) -> Snapshot:
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        buf = io.BytesIO()
+        model.save(buf)
+        venv = model.get_env()  # a VecNormalize pickles without the env it wraps
+        return cls(buf.getvalue(), pickle.dumps(venv) if isinstance(venv, VecNormalize) else None)
+
+    @classmethod
+    def read(cls, folder: Path) -> Snapshot:
+        norm = folder / NORMALIZER
+        return cls((folder / MODEL).read_bytes(), norm.read_bytes() if norm.exists() else None)
+
+    def write(self, folder: Path) -> None:
+        folder.mkdir(parents=True, exist_ok=True)
+        atomic_write(folder / MODEL, lambda p: p.write_bytes(self.model))
+        if self.normalizer is not None:
+            atomic_write(folder / NORMALIZER, lambda p: p.write_bytes(self.normalizer))
+
+
+@dataclass
+class PendingEvaluation:
+    """An evaluation started and not yet recorded: its row's step and clocks, the snapshot, the result."""
+
+    meta: dict[str, Any]
+    snapshot: Snapshot
+    result: Future
+
+
+_EVAL_ENVS = EnvCache()  # the validation envs of this process (a worker's, or the training process')
+
+
+def evaluate_snapshot(cfg: RunConfig, name: str, snap: Snapshot, episodes: list) -> dict[str, float]:
+    """Metric means of a saved model on the episodes through the leaderboard's loop (evaluate_controller),
+    deterministic, its observation statistics frozen (SB3Policy): in the validation worker or in the
+    training process, the same numbers (picklable for the worker). The global random generators are left
+    as they were (SB3's load reseeds them), so validation in the training process does not change the
+    training."""
+
+    with _generators_kept():
+        model = algorithm_class(cfg.algorithm).load(io.BytesIO(snap.model), device="cpu")
+        norm = pickle.loads(snap.normalizer) if snap.normalizer is not None else None
+        base = make(cfg.base) if cfg.base is not None else None
+        policy = SB3Policy(model, (), name, inputs=cfg.inputs, base=base, alpha=cfg.alpha, normalizer=norm)
+        return evaluate_controller(policy, episodes, _EVAL_ENVS)
+
+
+@contextlib.contextmanager
+def _generators_kept() -> Any:
+    """Python's, numpy's and torch's global random generators restored on exit."""
+
+    import torch
+
+    saved = random.getstate(), np.random.get_state(), torch.get_rng_state()
+    try:
+        yield
+    finally:
+        random.setstate(saved[0])
+        np.random.set_state(saved[1])
+        torch.set_rng_state(saved[2])

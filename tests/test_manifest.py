@@ -1,0 +1,49 @@
+"""A model folder's manifest (agents/manifest.py): what training writes is what the registry reads."""
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from frictiongym.agents.learned import PolicyInputs
+from frictiongym.agents.manifest import MANIFEST, Manifest
+from frictiongym.envs.config import ConfigError
+
+MODELS = Path(__file__).parents[1] / "agents" / "models"
+
+
+def test_every_committed_manifest_reads_and_writes_back_byte_for_byte():
+    folders = sorted(p.parent for p in MODELS.glob("*/*/" + MANIFEST))
+    assert len(folders) >= 12
+    for folder in folders:
+        m = Manifest.read(folder)
+        assert m.name == folder.name and m.plants and m.inputs is not None
+        assert yaml.safe_dump(m.as_dict(), sort_keys=False) == (folder / MANIFEST).read_text(), folder
+
+
+def test_a_hand_made_manifest_needs_a_name_and_an_algorithm_only(tmp_path):
+    (tmp_path / "model.zip").write_bytes(b"")
+    (tmp_path / MANIFEST).write_text("name: PPO-kang\nalgorithm: PPO\n")
+    m = Manifest.read(tmp_path)
+    assert (m.model, m.normalizer, m.plants, m.alpha) == ("model.zip", None, (), 1.0)
+    assert m.policy_inputs == PolicyInputs()
+    (tmp_path / MANIFEST).write_text("name: R\nalgorithm: SAC\nbase_controller: PID\n")
+    assert Manifest.read(tmp_path).policy_inputs == PolicyInputs(base_action=True)  # a residual sees its base
+
+
+@pytest.mark.parametrize(
+    ("text", "field"),
+    [
+        ("name: A\nalgorithm: PPO\nalgoritm: SAC\n", "algoritm"),  # a typo is an unknown key
+        ("name: A\nalgorithm: PPO\nnormalizer: stats.pkl\n", "normalizer"),  # a file that is not there
+        ("name: ''\nalgorithm: PPO\n", "name"),
+        ("name: A\nalgorithm: PPO\nalpha: -1\n", "alpha"),
+        ("name: A\nalgorithm: PPO\nplants: m220\n", "plants"),
+    ],
+)
+def test_a_bad_manifest_is_an_error_naming_the_file_and_key(tmp_path, text, field):
+    (tmp_path / "model.zip").write_bytes(b"")
+    (tmp_path / MANIFEST).write_text(text)
+    with pytest.raises(ConfigError) as e:
+        Manifest.read(tmp_path)
+    assert e.value.field == field and e.value.source == str(tmp_path / MANIFEST)
