@@ -89,11 +89,11 @@ def plan(
 ) -> tuple[list[Job], list[tuple[str, str, str]]]:
     """The jobs (episode-major, controllers in the given order) and the skipped (controller, scenario,
     reason) pairs of controllers not defined for a scenario."""
-    envs, made = EnvCache(), {name: registry.make(name, models) for name in controllers}
+    envs, checks = EnvCache(), {name: registry.why_not(name, models) for name in controllers}
     jobs, skipped, seen = [], [], set()
     for e in episodes:
-        for name, c in made.items():
-            reason = c.why_not(envs.scenario(e))
+        for name, why_not in checks.items():
+            reason = why_not(envs.scenario(e))
             if reason is None:
                 jobs.append(Job(name, e.scenario, e.seed, e.randomize, params_text(e)))
             elif (name, e.scenario) not in seen:

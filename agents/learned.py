@@ -114,6 +114,26 @@ class LearnedNeeds:
         return self.inputs.observation_overrides()
 
 
+def policy_why_not(
+    observes: tuple[int, ...],
+    inputs: PolicyInputs,
+    plants: tuple[str, ...],
+    base: Controller | None,
+    scenario: Scenario,
+) -> str | None:
+    """Why a policy that observes `observes` (its input shape) cannot run on the scenario, or None: its
+    base controller's reason, another input shape, another plant. Decided from the saved model or from
+    its manifest alone (registry.why_not), the same way."""
+    if base is not None and (reason := base.why_not(scenario)) is not None:
+        return f"base controller {base.name}: {reason}"
+    got = (inputs.size(scenario),)
+    if got != tuple(observes):
+        return f"the model observes shape {tuple(observes)}, the scenario gives {got}"
+    if plants and scenario.spec.name not in plants:
+        return f"trained for plants {list(plants)}, the scenario's plant is {scenario.spec.name}"
+    return None
+
+
 class SB3Policy(LearnedNeeds, Controller):
     """A trained SB3 model (any algorithm with predict), deterministic.
 
@@ -172,15 +192,8 @@ class SB3Policy(LearnedNeeds, Controller):
         return policy
 
     def why_not(self, scenario: Scenario) -> str | None:
-        if self.base is not None and (reason := self.base.why_not(scenario)) is not None:
-            return f"base controller {self.base.name}: {reason}"
-        want = tuple(self.model.observation_space.shape)
-        got = (self.inputs.size(scenario),)
-        if got != want:
-            return f"the model observes shape {want}, the scenario gives {got}"
-        if self.plants and scenario.spec.name not in self.plants:
-            return f"trained for plants {list(self.plants)}, the scenario's plant is {scenario.spec.name}"
-        return None
+        observes = tuple(self.model.observation_space.shape)
+        return policy_why_not(observes, self.inputs, self.plants, self.base, scenario)
 
     def reset(self, ctx: EpisodeContext) -> None:
         self.ctx = ctx

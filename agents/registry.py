@@ -21,10 +21,11 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from frictiongym.envs.config import ConfigError
+from frictiongym.envs.scenario import Scenario, load_scenario
 
 from .base import ZERO, Controller, Zero
 from .classical import PD, PID, RDFC, CoulombViscousFF, LabPD, LuGreObserver, Southward, StateFeedback
-from .learned import SB3Policy
+from .learned import SB3Policy, policy_why_not
 from .limits import Ideal, Oracle
 from .manifest import MANIFEST, Manifest
 
@@ -109,6 +110,23 @@ def model_factory(folder: Path) -> tuple[str, Callable[[], Controller]]:
         )
 
     return m.name, factory
+
+
+@cache
+def _manifests(models: tuple[str, ...]) -> dict[str, Manifest]:
+    """The manifests of the saved models under `models`, by model name (read once per process)."""
+    return {m.name: m for m in (Manifest.read(folder) for folder in model_dirs(models))}
+
+
+def why_not(name: str, models: Sequence[str | Path] = ()) -> Callable[[Scenario], str | None]:
+    """make(name, models).why_not, without loading a saved model whose manifest names its training
+    scenario: that model observes what the policy saw there (learned.policy_why_not decides both)."""
+    m = _manifests(tuple(str(x) for x in models)).get(name)
+    if m is None or m.scenario is None:
+        return make(name, models).why_not
+    base = BUILTIN[m.base_controller]() if m.base_controller is not None else None
+    observes = (m.policy_inputs.size(load_scenario(m.scenario)),)
+    return partial(policy_why_not, observes, m.policy_inputs, m.plants, base)
 
 
 def available(models: Sequence[str | Path] = ()) -> dict[str, Callable[[], Controller]]:
