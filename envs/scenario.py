@@ -214,7 +214,7 @@ class Scenario:
     # Stribeck, presliding, asymmetry bias) removed, the viscous term kept (EpisodeParams.friction_free)
     nonlinear_friction: bool = True
     friction_drift: FrictionDrift | None = None  # friction levels that drift within an episode
-    held_out: bool = False  # a generalisation scenario: never trained or selected on (agents/training.py)
+    held_out: bool = False  # a generalisation scenario: never trained or selected on (agents/training/)
     uncompensated: str = ""  # name of the loop the physical-limit rows build on (benchmark.uncompensated)
     limit_score: str = "linear"  # how the friction penalty removed is scored (benchmark.limit_score)
 

@@ -34,7 +34,7 @@ import sys
 from pathlib import Path
 
 from frictiongym.agents.lab import workflow
-from frictiongym.agents.lab.identify import recovery, run
+from frictiongym.agents.lab.identify import IdentifyOptions, recovery, run
 from frictiongym.envs.config import ConfigError, plant_names
 from frictiongym.envs.records import atomic_text
 
@@ -82,9 +82,8 @@ def main(argv: list[str] | None = None) -> int:
             return _lab(args)
         if args.document and args.kind == "lugre":
             ap.error("--document holds a step and a Coulomb + viscous table: use step or friction")
-        text = run(
+        options = IdentifyOptions(
             args.kind,
-            args.out,
             csv=args.csv,
             simulate=args.simulate,
             seed=args.seed,
@@ -97,6 +96,7 @@ def main(argv: list[str] | None = None) -> int:
             step_v=args.step_v,
             min_speed=args.min_speed,
         )
+        text = run(options, args.out)
     except (ConfigError, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

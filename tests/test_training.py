@@ -1,4 +1,4 @@
-"""Training pipeline (agents/training.py, scripts/train.py): configs, every algorithm, save/load, resume,
+"""Training pipeline (agents/training/, scripts/train.py): configs, every algorithm, save/load, resume,
 the residual's zero start, asymmetric actor-critic, registry entries, and the sim-to-real study."""
 
 from __future__ import annotations

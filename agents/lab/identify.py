@@ -10,6 +10,7 @@ import hashlib
 import json
 import math
 import re
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -42,6 +43,7 @@ from .identification import (
 )
 
 TABLE = "iurian2005_m220_friction_table.csv"
+IDENTIFIED = "identified.yaml"  # the override file an identification writes
 RECOMMENDED_MIN_SPEED_COUNTS_S = 7000.0  # above the low-speed hump of rows 1-4 (stick-slip, Stribeck)
 
 
@@ -66,7 +68,7 @@ def write_identified(out: Path, values: dict[str, float], source: str) -> Path:
         '#            overrides=yaml.safe_load(open("identified.yaml")))\n'
         + yaml.safe_dump(body, sort_keys=False)
     )
-    path = out / "identified.yaml"
+    path = out / IDENTIFIED
     atomic_text(path, text)
     return path
 
@@ -264,104 +266,143 @@ def friction_report(fid: FrictionId, unit: str, truth: dict[str, float] | None, 
 
 
 # ------------------------------------------------------------------------------------------- run
-def run(
-    kind: str,
-    out: Path,
-    csv: Path | None = None,
-    simulate: str | None = None,
-    seed: int = 0,
-    randomize: bool = False,
-    document: bool = False,
-    breakaway: tuple[Path, float] | None = None,
-    presliding: tuple[Path, float, float] | None = None,
-    step_v: float | None = None,
-    min_speed: float = 0.0,
-) -> str:
-    """One identification run into out/ (report.md, result.json, plots, identified.yaml, logs/)."""
-    out.mkdir(parents=True, exist_ok=True)
-    truth, rig, proto = None, None, None
+@dataclass(frozen=True)
+class IdentifyOptions:
+    """One identification (scripts/identify.py's options): what to identify and from which data; exactly
+    one of csv, simulate and document gives the data. Units: SI and the plant's command unit (cu)."""
+
+    kind: str  # "step" (k, a of the open-loop step), "friction" (Coulomb + viscous) or "lugre"
+    csv: Path | None = None  # a hardware log: the holds (friction, lugre) or the step (step)
+    simulate: str | None = None  # a plant preset: run the identification experiments on its simulation
+    seed: int = 0  # the simulated plant's draw (with randomize) and its noise
+    randomize: bool = False  # simulate a randomised draw of the plant instead of the nominal preset
+    document: bool = False  # the M220 document's own numbers (seed 000 §2.2-2.3): step or friction
+    breakaway: tuple[Path, float] | None = None  # a breakaway-ramp log and its threshold speed (rad/s)
+    presliding: tuple[Path, float, float] | None = None  # a presliding log, amplitude (cu), frequency (Hz)
+    step_v: float | None = None  # the step command of a --csv step log (cu)
+    min_speed: float = 0.0  # rad/s: holds below it are left out of the Coulomb + viscous fit
+
+
+@dataclass
+class Identification:
+    """What one identification computed: the report's text, result.json's content, the override's
+    values (None for a step), the logs of a simulated experiment, and what its figure shows."""
+
+    data: str  # where the data came from (a file, the simulation, the document)
+    text: str
+    results: dict[str, Any]
+    values: dict[str, float] | None = None
+    logs: dict[str, Log] = field(default_factory=dict)  # simulated experiments (written to logs/)
+    fid: FrictionId | None = None  # a friction fit (figure fit_friction.png)
+    unit: str = ""
+    truth: dict[str, float] | None = None  # a simulated plant's true values (drawn on the lugre figure)
+    table: dict[str, np.ndarray] | None = None  # the document's table (its figure)
+
+
+def identify(o: IdentifyOptions) -> Identification:
+    """Compute one identification: read or simulate the data, fit, and compose the report."""
+    truth, proto = None, None
     logs: dict[str, Log] = {}
-    if simulate is not None:
-        rig, proto = ex.Rig.of(simulate, seed, randomize), ex.protocol(simulate)
-        want = {"step": ("step",), "friction": ("holds",), "lugre": ("holds", "breakaway", "presliding")}[
-            kind
-        ]
-        logs = ex.run_all(rig, proto, want)
-        (out / "logs").mkdir(exist_ok=True)
-        for name, log in logs.items():
-            write_log(out / "logs" / f"{name}.csv", log)
+    simulated: dict[str, Log] = {}
+    if o.simulate is not None:
+        rig, proto = ex.Rig.of(o.simulate, o.seed, o.randomize), ex.protocol(o.simulate)
+        want = {"step": ("step",), "friction": ("holds",), "lugre": ("holds", "breakaway", "presliding")}
+        logs = simulated = ex.run_all(rig, proto, want[o.kind])
         truth = truth_values(rig.spec)
-        data = f"simulated {simulate} (seed {seed}, randomize {randomize})"
-    elif csv is not None:
-        logs = {"step" if kind == "step" else "holds": read_log(csv)}
-        if breakaway is not None:
-            logs["breakaway"] = read_log(breakaway[0])
-        if presliding is not None:
-            logs["presliding"] = read_log(presliding[0])
-        data = str(csv)
-    elif not document:
+        data = f"simulated {o.simulate} (seed {o.seed}, randomize {o.randomize})"
+    elif o.csv is not None:
+        logs = {"step" if o.kind == "step" else "holds": read_log(o.csv)}
+        if o.breakaway is not None:
+            logs["breakaway"] = read_log(o.breakaway[0])
+        if o.presliding is not None:
+            logs["presliding"] = read_log(o.presliding[0])
+        data = str(o.csv)
+    elif not o.document:
         raise ValueError("give one of --csv, --simulate or --document")
     else:
         data = f"seed 000 §2.2-2.3 (configs/published/{TABLE})"
-    results: dict[str, Any] = {"kind": kind, "data": data}
-    sections = [f"# Identification ({kind}): {data}", ""]
-    values = None
-    if kind == "step":
-        if document:
+    ident = Identification(data, "", {"kind": o.kind, "data": data}, logs=simulated, truth=truth)
+    sections = [f"# Identification ({o.kind}): {data}", ""]
+    if o.kind == "step":
+        if o.document:
             text, res = step_from_document()
         else:
-            v = step_v if step_v is not None else (proto.step_v if proto else None)
+            v = o.step_v if o.step_v is not None else (proto.step_v if proto else None)
             if v is None:
                 raise ValueError("--step-v (the step command of the log) is required with --csv")
             text, res = step_from_log(logs["step"], v)
         sections.append(text)
-        results["step"] = res
-    elif kind == "friction" and document:
-        text, res, values = friction_from_document()
+        ident.results["step"] = res
+    elif o.kind == "friction" and o.document:
+        text, res, ident.values = friction_from_document()
         sections.append(text)
-        results["friction"] = res
-        t = document_table()
-        _plot_document(t, values, out / "fit_friction.png")
+        ident.results["friction"] = res
+        ident.table = document_table()
     else:
-        unit = logs["holds"].command_unit
-        if kind == "friction":
-            fid = identify_coulomb_viscous(logs["holds"], min_speed)
+        ident.unit = logs["holds"].command_unit
+        if o.kind == "friction":
+            fid = identify_coulomb_viscous(logs["holds"], o.min_speed)
         else:
-            brk = (
-                (logs["breakaway"], breakaway[1] if breakaway else proto.threshold)
-                if "breakaway" in logs
-                else None
-            )
+            brk = None
+            if "breakaway" in logs:
+                brk = (logs["breakaway"], o.breakaway[1] if o.breakaway else proto.threshold)
             pre = None
             if "presliding" in logs:
-                pre = (
-                    logs["presliding"],
-                    *(presliding[1:] if presliding else (proto.presliding_amplitude, proto.presliding_hz)),
+                amplitude_hz = (
+                    o.presliding[1:] if o.presliding else (proto.presliding_amplitude, proto.presliding_hz)
                 )
+                pre = (logs["presliding"], *amplitude_hz)
             fid = identify_lugre(logs["holds"], brk, pre)
         values = {
             k: v
             for k, v in fid.values().items()
             if k not in fid.unidentified or k == "stribeck_velocity_rad_s"
         }
-        if kind == "friction":
+        if o.kind == "friction":
             values = {k: values[k] for k in ("coulomb_pos", "coulomb_neg", "viscous_per_rad_s")}
         elif "stribeck_velocity_rad_s" in fid.unidentified:
             values.pop("stribeck_velocity_rad_s")
-        sections.append(friction_report(fid, unit, truth, "Friction" if kind == "friction" else "LuGre"))
-        results["estimates"] = {k: vars(e) for k, e in fid.estimates.items()}
-        results["unidentified"] = sorted(fid.unidentified)
-        results["notes"] = fid.notes
-        results["truth"] = truth
-        _plot_static(fid, unit, out / "fit_friction.png", truth if kind == "lugre" else None)
-    if values is not None:
-        path = write_identified(out, values, provenance(data))
-        sections += ["", f"Override for the envs: `{path.name}` ({', '.join(values)})."]
-        results["identified"] = values
-    text = "\n".join(sections) + "\n"
-    atomic_text(out / "report.md", text)
-    atomic_text(out / "result.json", json.dumps(results, indent=1, default=float))
-    return text
+        title = "Friction" if o.kind == "friction" else "LuGre"
+        sections.append(friction_report(fid, ident.unit, truth, title))
+        ident.results |= {
+            "estimates": {k: vars(e) for k, e in fid.estimates.items()},
+            "unidentified": sorted(fid.unidentified),
+            "notes": fid.notes,
+            "truth": truth,
+        }
+        ident.fid, ident.values = fid, values
+        if o.kind != "lugre":
+            ident.truth = None  # the Coulomb + viscous figure draws no truth
+    if ident.values is not None:
+        sections += ["", f"Override for the envs: `{IDENTIFIED}` ({', '.join(ident.values)})."]
+        ident.results["identified"] = ident.values
+    ident.text = "\n".join(sections) + "\n"
+    return ident
+
+
+def write(ident: Identification, out: Path) -> None:
+    """Write an identification into out/: logs/ (simulated experiments), fit_friction.png, identified.yaml,
+    report.md and result.json, each atomically."""
+    out.mkdir(parents=True, exist_ok=True)
+    if ident.logs:
+        (out / "logs").mkdir(exist_ok=True)
+        for name, log in ident.logs.items():
+            write_log(out / "logs" / f"{name}.csv", log)
+    if ident.table is not None:
+        _plot_document(ident.table, ident.values, out / "fit_friction.png")
+    elif ident.fid is not None:
+        _plot_static(ident.fid, ident.unit, out / "fit_friction.png", ident.truth)
+    if ident.values is not None:
+        write_identified(out, ident.values, provenance(ident.data))
+    atomic_text(out / "report.md", ident.text)
+    atomic_text(out / "result.json", json.dumps(ident.results, indent=1, default=float))
+
+
+def run(options: IdentifyOptions, out: Path) -> str:
+    """One identification into out/; returns the report's text."""
+    ident = identify(options)
+    write(ident, out)
+    return ident.text
 
 
 def _plot_document(t: dict[str, np.ndarray], values: dict[str, float], path: Path) -> None:
