@@ -81,6 +81,7 @@ def test_kang_resolved_gain_reproduces_printed_bounds():
     [
         ({"coulomb_pos": 0.1, "coulomb_neg": 0.1}, "viscous_per_rad_s"),  # a required value missing
         ({"coulomb_pos": 0.1, "coulomb_neg": -0.1, "viscous_per_rad_s": 0.01}, "coulomb_neg"),
+        ({"coulomb_pos": "x", "coulomb_neg": 0.1, "viscous_per_rad_s": 0.01}, "coulomb_pos"),  # not a number
         (
             {"coulomb_pos": 0.1, "coulomb_neg": 0.1, "viscous_per_rad_s": 0.01, "static_pos": 0.05},
             "static_pos",

@@ -12,7 +12,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields, replace
 
-from ..config import ConfigError, Node
+from ..config import ConfigError, Node, positive
 from ..friction import LuGreParams
 from .spec import PlantSpec
 
@@ -99,12 +99,10 @@ class IdentifiedFriction:
         for key in cls.REQUIRED:
             if key not in values:
                 raise error(key, "required")
-        out = {}
-        for key, v in values.items():
-            v = float(v)
-            if not (math.isfinite(v) and v > 0):
-                raise error(key, f"{v} must be a positive finite number")
-            out[key] = v
+        if node is None:
+            out = {key: positive(v, key) for key, v in values.items()}
+        else:
+            out = {key: node.check(positive, v, node.field(key)) for key, v in values.items()}
         ident = cls(**out)
         for d in ("pos", "neg"):
             static, coulomb = getattr(ident, f"static_{d}"), getattr(ident, f"coulomb_{d}")
@@ -119,7 +117,7 @@ class IdentifiedFriction:
         if not list(node.keys()):
             return None
         names = [f.name for f in fields(cls)]
-        values = {k: node.positive(k) for k in names if k in node or k in cls.REQUIRED}
+        values = {k: node.get(k) for k in names if k in node}  # checked once, by from_values
         node.get("source")  # provenance, kept in the file
         node.done()
         return cls.from_values(values, node)
