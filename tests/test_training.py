@@ -434,12 +434,19 @@ def test_sim2real_on_a_tiny_grid(tmp_path):
     assert main(args) == 0 and len((tmp_path / "episodes.csv").read_text().splitlines()) == n
 
 
-@pytest.mark.parametrize("algo", ["SAC", "TD3", "TQC", "CrossQ", "PPO"])
-def test_policy_actions_equal_sb3_predict(tmp_path, algo):
-    """SB3Policy's own prediction path (no per-call eval-mode switch) gives model.predict's actions
-    bit for bit, in range and out of it, also after training switched the policy back to train mode."""
-    (cfg,) = load_config(write_config(tmp_path, algo))
+@pytest.mark.parametrize(
+    ("algo", "privileged"),
+    [("SAC", False), ("TD3", False), ("TQC", False), ("CrossQ", False), ("PPO", False), ("SAC", True),
+     ("TD3", True)],
+)
+def test_policy_actions_equal_sb3_predict(tmp_path, algo, privileged):
+    """SB3Policy's own prediction path (no per-call eval-mode switch, no action distribution, its layers
+    called as a plain chain) gives model.predict's actions bit for bit, in range and out of it, also after
+    training switched the policy back to train mode, and with the asymmetric actor's feature selection."""
+    extra = {"observation": {"privileged_critic": True}} if privileged else {}
+    (cfg,) = load_config(write_config(tmp_path, algo, **extra))
     model = build_model(cfg, make_training_env(cfg, 0), 0, None)
+    assert type(model.policy).__name__.startswith("Asymmetric") == privileged
     import torch
 
     with torch.no_grad():  # a non-trivial actor: the zeroed output layer would make every action equal
