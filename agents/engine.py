@@ -16,7 +16,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import math
 import multiprocessing
 import os
 import signal
@@ -25,30 +24,31 @@ import threading
 import time
 from collections.abc import Callable, Iterable
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any
 
 from tqdm import tqdm
 
-from frictiongym.envs import env_id
 from frictiongym.envs.metrics import METRIC_NAMES
 from frictiongym.envs.records import atomic_text, git_commit, package_version
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
 
 from . import registry
-from .base import ZERO
-from .evaluate import EnvCache, run_episode
-from .stats import limit_score, normalized_score
+from .evaluate import EnvCache, EpisodeResult, params_text, run_episode
+from .stats import Scoring, attach_scores
 
 PARENT_POLL_S = 0.5  # how often a pool worker checks that its parent is alive (s)
 CHUNK = 4  # episodes per task: small, so a killed run loses little and the pool stays balanced
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "MUJOCO_NUM_THREADS")
-KEY = ("controller", "scenario", "seed", "randomize", "params")
-FIELDS = (
-    *KEY,
+FIELDS = (  # episodes.csv's columns: the job's identity (Job.key), the result, provenance
+    "controller",
+    "scenario",
+    "seed",
+    "randomize",
+    "params",
     "return",
     "diverged",
     *METRIC_NAMES,
@@ -74,14 +74,9 @@ class Job:
         pinned = tuple(sorted(json.loads(self.params).items())) if self.params else ()
         return Episode(self.scenario, self.seed, self.randomize, pinned)
 
-    def key(self) -> tuple[str, ...]:
-        """The job's identity as it reads back from the CSV (all strings)."""
-        return (self.controller, self.scenario, str(self.seed), str(self.randomize), self.params)
-
-
-def params_text(e: Episode) -> str:
-    """An episode's pinned parameters as the CSV holds them: sorted JSON, or "" for none."""
-    return json.dumps(dict(e.params), sort_keys=True) if e.params else ""
+    def key(self) -> tuple[str, str, int, bool, str]:
+        """The job's identity, as its result's (EpisodeResult.key)."""
+        return (self.controller, self.scenario, self.seed, self.randomize, self.params)
 
 
 def plan(
@@ -169,31 +164,17 @@ def run_interruptibly(fn: Callable[[], int], resume: str) -> int:
         signal.signal(signal.SIGTERM, old)
 
 
-def run_chunk(jobs: list[Job], prov: dict[str, str], models: tuple[str, ...] = ()) -> list[dict[str, Any]]:
-    """The rows of some jobs, in this process (controllers and envs cached per process); `models`: the
+def run_chunk(jobs: list[Job], prov: dict[str, str], models: tuple[str, ...] = ()) -> list[EpisodeResult]:
+    """The results of some jobs, in this process (controllers and envs cached per process); `models`: the
     saved-model folders the registry loads (registry.available)."""
-    rows = []
+    results = []
     for job in jobs:
         if job.controller not in _CONTROLLERS:
             _CONTROLLERS[job.controller] = registry.make(job.controller, models)
-        c = _CONTROLLERS[job.controller]
-        r = run_episode(c, job.episode, envs=_ENVS)
-        rows.append(
-            {
-                **asdict(job),
-                "return": r.episode_return,
-                "diverged": r.diverged,
-                **r.metrics,
-                "controller_params": json.dumps(c.params(), sort_keys=True, default=_jsonable),
-                "env_id": env_id(_ENVS.scenario(job.episode).spec.name),
-                **prov,
-            }
-        )
-    return rows
-
-
-def _jsonable(x: Any) -> Any:
-    return x.tolist() if hasattr(x, "tolist") else str(x)
+        r = run_episode(_CONTROLLERS[job.controller], job.episode, envs=_ENVS)
+        r.provenance = prov
+        results.append(r)
+    return results
 
 
 def chunks(jobs: list[Job], size: int = CHUNK) -> list[list[Job]]:
@@ -243,7 +224,7 @@ def ray_init(workers: int, address: str | None) -> None:
         ray.init(address=address, runtime_env=env, log_to_driver=False)
 
 
-def _run_chunk_ray(jobs: list[Job], prov: dict[str, str], models: tuple[str, ...]) -> list[dict[str, Any]]:
+def _run_chunk_ray(jobs: list[Job], prov: dict[str, str], models: tuple[str, ...]) -> list[EpisodeResult]:
     init_worker()
     return run_chunk(jobs, prov, models)
 
@@ -251,13 +232,13 @@ def _run_chunk_ray(jobs: list[Job], prov: dict[str, str], models: tuple[str, ...
 def run_jobs(
     jobs: list[Job],
     workers: int,
-    on_rows: Callable[[list[dict[str, Any]]], None],
+    on_rows: Callable[[list[EpisodeResult]], None],
     progress: bool = True,
     models: tuple[str, ...] = (),
     ray: Ray | None = None,
 ) -> None:
-    """Run jobs (workers = 1: in this process; `ray`: as Ray tasks) and hand each finished chunk's rows to
-    on_rows."""
+    """Run jobs (workers = 1: in this process; `ray`: as Ray tasks) and hand each finished chunk's results
+    to on_rows."""
     prov = provenance()
     todo = chunks(jobs)
     bar = tqdm(total=len(jobs), desc="episodes", unit="ep", disable=not progress)
@@ -317,13 +298,57 @@ class RunMismatch(RuntimeError):
     """The output folder holds a run with other options."""
 
 
-def _csv_text(rows: Iterable[dict[str, Any]], header: bool = False) -> str:
+def csv_fields(r: EpisodeResult) -> dict[str, Any]:
+    """A result as its episodes.csv row (FIELDS); floats as repr, so they read back exactly."""
+    values = {
+        "controller": r.controller,
+        "scenario": r.scenario,
+        "seed": r.seed,
+        "randomize": r.randomize,
+        "params": r.params,
+        "return": r.episode_return,
+        "diverged": r.diverged,
+        **r.metrics,
+        "score": r.score,
+        "g": r.g,
+        "controller_params": r.controller_params,
+        "env_id": r.env_id,
+        **r.provenance,
+    }
+    return {k: repr(v) if isinstance(v, float) else v for k, v in values.items()}
+
+
+def _flag(text: str, field_name: str) -> bool:
+    if text not in ("True", "False"):
+        raise ValueError(f"episodes.csv field {field_name!r} must be True or False, got {text!r}")
+    return text == "True"
+
+
+def parse_row(row: dict[str, str]) -> EpisodeResult:
+    """The result an episodes.csv row holds: the one reader of the file's rows (csv_fields inverted)."""
+    return EpisodeResult(
+        controller=row["controller"],
+        scenario=row["scenario"],
+        seed=int(row["seed"]),
+        metrics={m: float(row[m]) for m in METRIC_NAMES},
+        episode_return=float(row["return"]),
+        diverged=_flag(row["diverged"], "diverged"),
+        score=float(row["score"] or "nan"),  # empty in unscored rows written by earlier versions (a run
+        g=float(row["g"] or "nan"),  # resumed across the change); written as nan now
+        randomize=_flag(row["randomize"], "randomize"),
+        params=row["params"],
+        controller_params=row["controller_params"],
+        env_id=row["env_id"],
+        provenance={k: row[k] for k in ("package_version", "git_commit")},
+    )
+
+
+def _csv_text(results: Iterable[EpisodeResult], header: bool = False) -> str:
     buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=FIELDS, lineterminator="\n", extrasaction="ignore")
+    w = csv.DictWriter(buf, fieldnames=FIELDS, lineterminator="\n")
     if header:
         w.writeheader()
-    for r in rows:  # repr: floats read back exactly
-        w.writerow({k: repr(v) if isinstance(v, float) else v for k, v in r.items()})
+    w.writerows(csv_fields(r) for r in results)
     return buf.getvalue()
 
 
@@ -343,38 +368,38 @@ class EpisodesFile:
             if self.path.exists():
                 raise RunMismatch(f"{self.path} exists without {run}; use another --out or remove it")
             atomic_text(run, text + "\n")
-        self.rows = self._read()
-        atomic_text(self.path, _csv_text(self.rows, header=True))  # without a torn tail
+        self.results = self._read()
+        atomic_text(self.path, _csv_text(self.results, header=True))  # without a torn tail
 
-    def _read(self) -> list[dict[str, str]]:
+    def _read(self) -> list[EpisodeResult]:
         """Complete rows already on disk (a last line without its newline is a torn write: dropped)."""
         if not self.path.exists():
             return []
         text = self.path.read_text()
         if not text.endswith("\n"):
             text = text[: text.rfind("\n") + 1]
-        rows = list(csv.DictReader(io.StringIO(text)))
-        return [r for r in rows if None not in r and len(r) == len(FIELDS)]
+        rows = csv.DictReader(io.StringIO(text))
+        return [parse_row(r) for r in rows if None not in r and len(r) == len(FIELDS)]
 
-    def done(self) -> set[tuple[str, ...]]:
-        return {tuple(r[k] for k in KEY) for r in self.rows}
+    def done(self) -> set[tuple[str, str, int, bool, str]]:
+        return {r.key() for r in self.results}
 
-    def append(self, rows: list[dict[str, Any]]) -> None:
-        """One write and an fsync for a finished chunk's rows."""
-        data = _csv_text(rows).encode()
+    def append(self, results: list[EpisodeResult]) -> None:
+        """One write and an fsync for a finished chunk's results."""
+        data = _csv_text(results).encode()
         fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
         try:
             os.write(fd, data)
             os.fsync(fd)
         finally:
             os.close(fd)
-        self.rows += list(csv.DictReader(io.StringIO(_csv_text(rows, header=True))))
+        self.results += results
 
-    def finish(self, order: list[Job], main_metric: dict[str, str]) -> list[dict[str, str]]:
-        """Fill in the normalised scores; rewrite the file in the jobs' order (atomically); the rows."""
-        self.rows = canonical(self.rows, order, main_metric)
-        atomic_text(self.path, _csv_text(self.rows, header=True))
-        return self.rows
+    def finish(self, order: list[Job], scoring: dict[str, Scoring]) -> list[EpisodeResult]:
+        """Fill in the scores; rewrite the file in the jobs' order (atomically); the results."""
+        self.results = canonical(self.results, order, scoring)
+        atomic_text(self.path, _csv_text(self.results, header=True))
+        return self.results
 
 
 def evaluate_to(
@@ -386,10 +411,10 @@ def evaluate_to(
     progress: bool = True,
     models: tuple[str, ...] = (),
     ray: Ray | None = None,
-) -> tuple[list[dict[str, str]], list[tuple[str, str, str]]]:
-    """Run every applicable (controller, episode) job not yet in DIR/episodes.csv; returns all rows (in
-    canonical order) and the skipped (controller, scenario, reason) pairs. The backend (`workers`, `ray`)
-    is not part of the run's options: a run can be resumed on another backend."""
+) -> tuple[list[EpisodeResult], list[tuple[str, str, str]]]:
+    """Run every applicable (controller, episode) job not yet in DIR/episodes.csv; returns all results
+    (in canonical order, scored) and the skipped (controller, scenario, reason) pairs. The backend
+    (`workers`, `ray`) is not part of the run's options: a run can be resumed on another backend."""
     store = EpisodesFile(out, options)
     jobs, skipped = plan(controllers, episodes, models)
     done = store.done()
@@ -397,19 +422,8 @@ def evaluate_to(
     return store.finish(jobs, scoring(episodes)), skipped
 
 
-@dataclass(frozen=True)
-class Scoring:
-    """How a scenario's episodes are scored (from its YAML): main metric, uncompensated loop, the kind of
-    limit score and its floor (the settling band)."""
-
-    main_metric: str
-    uncompensated: str
-    limit_score: str
-    floor: float
-
-
 def scoring(episodes: list[Episode]) -> dict[str, Scoring]:
-    """Each scenario's Scoring."""
+    """Each scenario's Scoring (stats.attach_scores), from its YAML."""
     out = {}
     for name in {e.scenario for e in episodes}:
         sc = load_scenario(name)
@@ -418,30 +432,10 @@ def scoring(episodes: list[Episode]) -> dict[str, Scoring]:
 
 
 def canonical(
-    rows: list[dict[str, Any]], order: list[Job], scores: dict[str, Scoring]
-) -> list[dict[str, Any]]:
-    """The rows in the jobs' order with their scores (as read back, or as run in memory)."""
+    results: list[EpisodeResult], order: list[Job], scoring: dict[str, Scoring]
+) -> list[EpisodeResult]:
+    """The results in the jobs' order, scored (stats.attach_scores)."""
     rank = {j.key(): i for i, j in enumerate(order)}
-    rows = sorted(rows, key=lambda r: rank.get(tuple(str(r[k]) for k in KEY), len(rank)))
-    attach_scores(rows, scores)
-    return rows
-
-
-def attach_scores(rows: list[dict[str, Any]], scores: dict[str, Scoring]) -> None:
-    """Per row, on the scenario's main metric m and the same episode's reference rows: score =
-    1 - m / m_Zero, and g, the friction penalty removed (stats.limit_score) between the scenario's
-    uncompensated loop and the Ideal row (nan where a reference did not run)."""
-
-    def episode(r: dict[str, Any]) -> tuple[str, ...]:
-        return (r["scenario"], str(r["seed"]), str(r["randomize"]), r["params"])
-
-    def metric(r: dict[str, Any]) -> float:
-        return float(r[scores[r["scenario"]].main_metric])
-
-    by = {(r["controller"], *episode(r)): metric(r) for r in rows}
-    for r in rows:
-        s, e = scores[r["scenario"]], episode(r)
-        m = metric(r)
-        r["score"] = normalized_score(m, by.get((ZERO, *e), math.nan))  # written with repr
-        m_unc, m_ideal = by.get((s.uncompensated, *e), math.nan), by.get(("Ideal", *e), math.nan)
-        r["g"] = limit_score(m, m_unc, m_ideal, s.limit_score, s.floor)
+    results = sorted(results, key=lambda r: rank.get(r.key(), len(rank)))
+    attach_scores(results, scoring)
+    return results

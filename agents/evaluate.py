@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from tqdm import tqdm
 
+from frictiongym.envs import env_id
 from frictiongym.envs.plants import PlantSpec
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.servo_env import ServoEnv
@@ -21,6 +22,10 @@ from .settings import knowledge_defaults
 
 @dataclass
 class EpisodeResult:
+    """One controller on one episode: the one row type from run_episode through the engine's
+    episodes.csv (engine.csv_fields / engine.parse_row) to the leaderboard's tables. score and g are the
+    per-episode scores stats.attach_scores fills in from the same episode's reference rows."""
+
     controller: str
     scenario: str
     seed: int
@@ -28,18 +33,30 @@ class EpisodeResult:
     episode_return: float
     diverged: bool
     log: dict[str, np.ndarray] | None = None
-    score: float = math.nan  # normalised score 1 - m / m_Zero of the scenario's main metric (leaderboard)
-    g: float = math.nan  # friction penalty removed on the main metric (stats.limit_score; leaderboard)
+    score: float = math.nan  # 1 - m / m_Zero of the scenario's main metric m
+    g: float = math.nan  # the friction penalty removed on the main metric (stats.limit_score)
+    randomize: bool = False  # the episode's randomisation flag
+    params: str = ""  # the episode's pinned parameters as sorted JSON ("" = none): params_text
+    controller_params: str = "{}"  # the controller's params() as sorted JSON
+    env_id: str = ""  # the versioned Gymnasium id of the episode's plant
+    provenance: dict[str, str] = field(default_factory=dict)  # the run's package version and git commit
 
-    def row(self) -> dict[str, Any]:
-        return {
-            "controller": self.controller,
-            "scenario": self.scenario,
-            "seed": self.seed,
-            "return": self.episode_return,
-            "diverged": self.diverged,
-            **self.metrics,
-        }
+    def key(self) -> tuple[str, str, int, bool, str]:
+        """The job's identity: (controller, scenario, seed, randomize, params)."""
+        return (self.controller, self.scenario, self.seed, self.randomize, self.params)
+
+    def episode(self) -> tuple[str, int, bool, str]:
+        """The episode's identity, shared by every controller's row on it."""
+        return (self.scenario, self.seed, self.randomize, self.params)
+
+
+def params_text(e: Episode) -> str:
+    """An episode's pinned parameters as results hold them: sorted JSON, or "" for none."""
+    return json.dumps(dict(e.params), sort_keys=True) if e.params else ""
+
+
+def _jsonable(x: Any) -> Any:
+    return x.tolist() if hasattr(x, "tolist") else str(x)
 
 
 class EnvCache:
@@ -138,6 +155,10 @@ def run_episode(
         total,
         bool(info.get("diverged", False)),
         log,
+        randomize=episode.randomize,
+        params=params_text(episode),
+        controller_params=json.dumps(controller.params(), sort_keys=True, default=_jsonable),
+        env_id=env_id(sc.spec.name),
     )
 
 

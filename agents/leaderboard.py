@@ -20,7 +20,6 @@ import math
 from collections import defaultdict
 from dataclasses import asdict
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -485,20 +484,6 @@ def plots(
     return names
 
 
-def result_of(row: dict[str, Any]) -> EpisodeResult:
-    """An EpisodeResult from an engine row (native values, or the strings read back from episodes.csv)."""
-    return EpisodeResult(
-        controller=str(row["controller"]),
-        scenario=str(row["scenario"]),
-        seed=int(row["seed"]),
-        metrics={m: float(row[m]) for m in METRIC_NAMES},
-        episode_return=float(row["return"]),
-        diverged=row["diverged"] in (True, "True"),
-        score=float(row["score"]),
-        g=float(row["g"]),
-    )
-
-
 def with_logs(
     picked: list[EpisodeResult], randomize: bool, models: tuple[str, ...] = ()
 ) -> list[EpisodeResult]:
@@ -538,16 +523,15 @@ def run(
     names = list(dict.fromkeys([*REFERENCES, *loops, *names]))
     if out is None:
         jobs, skipped = engine.plan(names, episodes, models)
-        rows: list[dict[str, Any]] = []
-        engine.run_jobs(jobs, workers, rows.extend, progress, models, ray)
-        rows = engine.canonical(rows, jobs, engine.scoring(episodes))
+        results: list[EpisodeResult] = []
+        engine.run_jobs(jobs, workers, results.extend, progress, models, ray)
+        results = engine.canonical(results, jobs, engine.scoring(episodes))
     else:
         options = {"episodes": [asdict(e) for e in episodes], "controllers": names, "models": list(models)}
-        rows, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models, ray)
+        results, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models, ray)
     for name, scenario, reason in skipped:
         if progress:
             print(f"skipped {name} on {scenario}: {reason}")
-    results = [result_of(r) for r in rows]
     table, agg = summarize(results, scenarios), aggregate(results, scenarios)
     if out is not None:
         write_table_csv(table, scenarios, out / "leaderboard.csv")

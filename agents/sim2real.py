@@ -38,7 +38,7 @@ from frictiongym.envs.suites import Episode, seed_range
 
 from . import engine, registry, stats
 from .base import ZERO
-from .evaluate import EnvCache, run_episode
+from .evaluate import EnvCache, EpisodeResult, run_episode
 
 SEEDS, _LAST = seed_range("sim2real")  # configs/suites.yaml's range: disjoint from every suite and training
 SET_SPAN = (_LAST + 1 - SEEDS) // 3  # seeds per set: one-axis and structure episodes, joint sets, model error
@@ -131,11 +131,13 @@ def plan(
     return episodes, rejected
 
 
-def condition(e: Episode | dict[str, Any], ranges: dict[str, tuple[float, float]]) -> tuple[str, float | str]:
-    """(axis or joint set, shift value; for the structural axis the structure's name) of an episode or an
-    episodes.csv row."""
+def condition(
+    e: Episode | EpisodeResult, ranges: dict[str, tuple[float, float]]
+) -> tuple[str, float | str]:
+    """(axis or joint set, shift value; for the structural axis the structure's name) of an episode or of
+    a result on one."""
 
-    params = dict(e.params) if isinstance(e, Episode) else json.loads(e["params"] or "{}")
+    params = dict(e.params) if isinstance(e, Episode) else json.loads(e.params or "{}")
     if "friction_model" in params:
         return "friction_model", params["friction_model"]
     if len(params) == 1:
@@ -145,18 +147,18 @@ def condition(e: Episode | dict[str, Any], ranges: dict[str, tuple[float, float]
     return ("joint_in_distribution" if inside else "joint_out_of_distribution"), math.nan
 
 
-def summarize(rows: list[dict[str, str]], scenario: str) -> list[dict[str, Any]]:
+def summarize(results: list[EpisodeResult], scenario: str) -> list[dict[str, Any]]:
     """sim2real.csv rows: controller, axis, shift, main metric and score means with 95 % intervals."""
     sc = load_scenario(scenario)
     main, groups = sc.main_metric, defaultdict(list)
-    for r in rows:
+    for r in results:
         axis, shift = condition(r, sc.spec.randomization)
-        groups[(r["controller"], axis, shift)].append(r)
+        groups[(r.controller, axis, shift)].append(r)
     out = []
     for (name, axis, shift), rs in groups.items():
-        m = stats.mean_ci([float(r[main]) for r in rs])
-        s = stats.mean_ci([float(r["score"]) for r in rs])
-        e = stats.mean_ci([float(r["effort_rms"]) for r in rs])
+        m = stats.mean_ci([r.metrics[main] for r in rs])
+        s = stats.mean_ci([r.score for r in rs])
+        e = stats.mean_ci([r.metrics["effort_rms"] for r in rs])
         out.append(
             {
                 "controller": name,
@@ -502,8 +504,8 @@ def run(
         "controllers": names,
         "models": list(models),
     }
-    rows, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models, ray)
-    table = summarize(rows, scenario)
+    results, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models, ray)
+    table = summarize(results, scenario)
     atomic_text(out / "sim2real.csv", csv_text(table))
     plot(table, scenario, out / "sim2real.png")
     if structures:

@@ -13,9 +13,16 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.stats import bootstrap, mannwhitneyu, trim_mean
+
+from .base import ZERO
+
+if TYPE_CHECKING:
+    from .evaluate import EpisodeResult
 
 CONFIDENCE = 0.95
 N_RESAMPLES = 2000
@@ -55,6 +62,32 @@ def limit_score(m: float, m_unc: float, m_ideal: float, kind: str, floor: float)
             return math.nan
         return math.log10(m_unc / max(m, floor * 10.0**-LOG_FLOOR_DECADES)) / math.log10(m_unc / ideal)
     raise ValueError(f"limit score kind {kind!r} not in ('linear', 'log', 'none')")
+
+
+@dataclass(frozen=True)
+class Scoring:
+    """How a scenario's episodes are scored (from its YAML): main metric, uncompensated loop, the kind of
+    limit score and its floor (the settling band, in the main metric's unit)."""
+
+    main_metric: str
+    uncompensated: str
+    limit_score: str
+    floor: float
+
+
+def attach_scores(results: Sequence[EpisodeResult], scoring: dict[str, Scoring]) -> None:
+    """Fill in each result's score = 1 - m / m_Zero and g, the friction penalty removed (limit_score)
+    between the scenario's uncompensated loop and the Ideal row, on the main metric m and the same
+    episode's reference rows (nan where a reference did not run)."""
+    def metric(r: EpisodeResult) -> float:
+        return r.metrics[scoring[r.scenario].main_metric]
+
+    by = {(r.controller, *r.episode()): metric(r) for r in results}
+    for r in results:
+        s, e, m = scoring[r.scenario], r.episode(), metric(r)
+        r.score = normalized_score(m, by.get((ZERO, *e), math.nan))
+        m_unc, m_ideal = by.get((s.uncompensated, *e), math.nan), by.get(("Ideal", *e), math.nan)
+        r.g = limit_score(m, m_unc, m_ideal, s.limit_score, s.floor)
 
 
 def _finite(x: Sequence[float]) -> np.ndarray:

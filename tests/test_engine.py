@@ -3,7 +3,9 @@
 import csv
 import hashlib
 import json
+import math
 import shutil
+from dataclasses import asdict
 from importlib.metadata import EntryPoint
 
 import pytest
@@ -28,7 +30,7 @@ def serial(tmp_path_factory):
 
 def test_applicability_skips_with_a_reason_and_never_crashes(serial):
     _, rows, skipped = serial
-    assert {(r["controller"], r["scenario"]) for r in rows} == {
+    assert {(r.controller, r.scenario) for r in rows} == {
         ("Zero", "kang_regulation"), ("PD", "kang_regulation"), ("RDFC", "kang_regulation"),
         ("Zero", "flexible_speed_step"), ("SF", "flexible_speed_step"),
     }  # fmt: skip
@@ -60,10 +62,25 @@ def test_other_options_into_the_same_folder_are_refused(serial):
 
 
 def test_rows_carry_metrics_and_provenance(serial):
-    _, rows, _ = serial
+    out, rows, _ = serial
+    header = (out / "episodes.csv").read_text().splitlines()[0]
+    assert tuple(header.split(",")) == engine.FIELDS
     r = rows[0]
-    assert set(engine.FIELDS) <= set(r)
-    assert r["package_version"] and float(r["iae"]) > 0
+    assert r.provenance["package_version"] and r.metrics["iae"] > 0
+    assert r.env_id.startswith("frictiongym/") and json.loads(r.controller_params) == {}  # Zero: no params
+
+
+def test_a_result_reads_back_from_its_csv_row_exactly(serial):
+    """episodes.csv holds each EpisodeResult as one row (engine.csv_fields) and parse_row, the file's one
+    reader, gives it back field for field: the floats (repr), nan metrics, the flags, the scores."""
+    out, rows, _ = serial
+    back = [engine.parse_row(r) for r in csv.DictReader((out / "episodes.csv").read_text().splitlines())]
+    assert [repr(asdict(r)) for r in back] == [repr(asdict(r)) for r in rows]  # types and bits; nan == nan
+    assert any(math.isnan(v) for r in rows for v in r.metrics.values())  # nan is read back as nan...
+    assert [r.score for r in back if r.controller == "Zero"] == [0.0] * 6  # and a score is a float
+    row = {k: str(v) for k, v in engine.csv_fields(rows[0]).items()}
+    with pytest.raises(ValueError, match="'diverged' must be True or False"):
+        engine.parse_row({**row, "diverged": "yes"})
 
 
 def test_entry_point_controllers_are_registered(monkeypatch):

@@ -88,6 +88,23 @@ def test_limit_score_cases():
     assert math.isnan(stats.limit_score(1.0, math.nan, 0.0, "linear", 1e-4))
 
 
+def test_scores_are_attached_from_the_same_episodes_reference_rows():
+    """stats.attach_scores on constructed results: per episode, score = 1 - m/m_Zero and g between the
+    uncompensated loop and Ideal; an episode without its Ideal row leaves g nan, not another episode's."""
+    scoring = {"s": stats.Scoring("iae", "PID", "linear", 0.0)}
+
+    def r(c: str, seed: int, iae: float) -> EpisodeResult:
+        return EpisodeResult(c, "s", seed, {"iae": iae}, 0.0, False, randomize=True)
+
+    results = [r("Zero", 1, 2.0), r("PID", 1, 1.0), r("Ideal", 1, 0.5), r("FF", 1, 0.75)]
+    results += [r("Zero", 2, 4.0), r("PID", 2, 2.0), r("FF", 2, 1.0)]
+    stats.attach_scores(results, scoring)
+    got = {(x.controller, x.seed): (x.score, x.g) for x in results}
+    assert got[("FF", 1)] == (1 - 0.75 / 2.0, (1.0 - 0.75) / (1.0 - 0.5))
+    assert got[("PID", 1)] == (0.5, 0.0) and got[("Ideal", 1)] == (0.75, 1.0) and got[("Zero", 1)][0] == 0.0
+    assert got[("FF", 2)][0] == 0.75 and math.isnan(got[("FF", 2)][1])
+
+
 def _result(c: str, sc: str, seed: int, g: float) -> EpisodeResult:
     return EpisodeResult(c, sc, seed, dict.fromkeys(METRIC_NAMES, 0.0), 0.0, False, g=g)
 

@@ -77,7 +77,7 @@ def test_a_killed_worker_job_is_retried_nothing_lost_nothing_duplicated(tmp_path
     rows, _ = engine.evaluate_to(tmp_path / "ray", controllers, episodes, OPTIONS, 2, False, (), engine.Ray())
     t.join()
     assert killed, "no running task was found to kill"
-    keys = [tuple(r[k] for k in engine.KEY) for r in rows]
+    keys = [r.key() for r in rows]
     assert len(keys) == len(set(keys)) == len(reference)
     assert (tmp_path / "ray" / "episodes.csv").read_text() == (tmp_path / "ref" / "episodes.csv").read_text()
 

@@ -96,7 +96,8 @@ def to_mjcf(spec: PlantSpec) -> str:
         )
     return (
         f'<mujoco model="{spec.name}"><option timestep="{spec.timestep!r}" integrator="{spec.integrator}" '
-        f'gravity="0 0 0"><flag contact="disable"/></option><visual><global offwidth="640" offheight="480"/></visual>'
+        f'gravity="0 0 0"><flag contact="disable"/></option>'
+        f'<visual><global offwidth="640" offheight="480"/></visual>'
         f'<worldbody><light pos="0 0 2"/><camera name="top" pos="0.25 -0.6 0.6" xyaxes="1 0 0 0 0.7 0.7"/>'
         f"{''.join(bodies)}</worldbody><actuator>{''.join(actuators)}</actuator>{''.join(extra)}</mujoco>"
     )
