@@ -4,9 +4,10 @@ and with --ray on a local Ray with 1 and N workers, measured side by side in one
 
     python scripts/bench_leaderboard.py [--workers 2] [--ray]
 
-Prints the wall time of each, the speed-ups, the Ray backend's overhead against the local pool (targets:
-<= 180 s with 2 workers, pool speed-up >= 1.7, Ray at most 15 % slower than the pool) and whether every
-episodes.csv is byte-identical.
+Prints the physics floor first (the suite's physics steps per plant times a bare mj_step loop's time per
+step: what no evaluation code can go below), then the wall time of each run, the speed-ups, the Ray
+backend's overhead against the local pool (targets: <= 180 s with 2 workers, pool speed-up >= 1.7, Ray at
+most 15 % slower than the pool) and whether every episodes.csv is byte-identical.
 """
 
 from __future__ import annotations
@@ -15,10 +16,45 @@ import argparse
 import os
 import tempfile
 import time
+from collections import Counter
 from pathlib import Path
 
+import mujoco
+
 from frictiongym.agents import engine, registry
+from frictiongym.agents.evaluate import EnvCache
 from frictiongym.envs.suites import load_suite
+
+PHYSICS_STEPS = 20000  # steps per timing of the bare mj_step loop (best of 5)
+
+
+def physics_floor(workers: int) -> float:
+    """Print and return the default suite's bare mj_step time on `workers` cores (s): per plant, the
+    physics steps of every applicable (controller, episode) job times the best time per step of a bare
+    mj_step loop of the plant's model."""
+    envs, steps, model = EnvCache(), Counter(), {}
+    controllers = [registry.make(n) for n in [*registry.BUILTIN, *registry.LIMITS]]
+    for e in load_suite("default"):
+        sc = envs.scenario(e)
+        jobs = sum(c.applies_to(sc) for c in controllers)
+        steps[sc.spec.name] += jobs * sc.episode_steps * sc.spec.substeps
+        model.setdefault(sc.spec.name, envs.env(controllers[0], e).core.model)
+    total = 0.0
+    for plant, n in steps.items():
+        m = model[plant]
+        d = mujoco.MjData(m)
+        per_step = min(_timed_steps(m, d) for _ in range(5)) / PHYSICS_STEPS
+        total += n * per_step
+        cost = n * per_step
+        print(f"physics floor {plant:15s} {n / 1e6:6.1f} M steps x {per_step * 1e6:.2f} us = {cost:6.1f} s")
+    print(f"physics floor: {total:.1f} s of mj_step, {total / workers:.1f} s on {workers} cores")
+    return total / workers
+
+
+def _timed_steps(m: mujoco.MjModel, d: mujoco.MjData) -> float:
+    t0 = time.perf_counter()
+    mujoco.mj_step(m, d, PHYSICS_STEPS)
+    return time.perf_counter() - t0
 
 
 def timed(workers: int, out: Path, ray: engine.Ray | None = None) -> tuple[float, int]:
@@ -35,6 +71,7 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 2)
     ap.add_argument("--ray", action="store_true", help="also the Ray backend (pip install -e .[distributed])")
     args = ap.parse_args()
+    physics_floor(args.workers)
     with tempfile.TemporaryDirectory() as d:
         times = {"serial": timed(1, Path(d) / "serial")}
         times["pool"] = timed(args.workers, Path(d) / "pool")
