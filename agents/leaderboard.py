@@ -10,15 +10,15 @@ than the uncompensated loop), the normalised score s = 1 - m / m_Zero, the secon
 paired comparison of every controller against the scenario's best classical baseline on the same
 episodes. Per plant, over equal sets of scenarios only: the IQM of g with stratified-bootstrap
 intervals, the probability of improvement between the top entries, performance profiles of g.
+
+Computed here (a Board), rendered by leaderboard_report (text, CSV, figures), then written (`write`).
 """
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from collections import defaultdict
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
@@ -29,11 +29,10 @@ from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.suites import Episode, load_suite
 
 from . import engine, registry, stats
-from .base import ZERO
+from . import leaderboard_report as report
 from .evaluate import EnvCache, EpisodeResult, run_episode
 
 REFERENCES = registry.REFERENCES  # Zero, Ideal, Oracle: run on every episode, never ranked
-TAUS = np.linspace(-0.5, 1.5, 201)  # performance-profile thresholds of g
 TOP = 5  # entries per set in the probability-of-improvement matrix
 
 
@@ -142,6 +141,7 @@ def verdicts(table: dict[str, list[dict]], scenarios: dict[str, Scenario]) -> li
                     "baseline_limit_cycle_amp": lc_base,
                     "beats_baseline": not why,
                     "why_not": "; ".join(why),
+                    "max_effort_ratio": MAX_EFFORT_RATIO,
                 }
             )
     return out
@@ -202,288 +202,6 @@ def aggregate(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> l
     return out
 
 
-def _fmt(ci: tuple[float, float, float]) -> str:
-    m, lo, hi = ci
-    return "n/a" if not np.isfinite(m) else f"{m:.4g} [{lo:.3g}, {hi:.3g}]"
-
-
-def _vs(r: dict) -> str:
-    v = r["vs_baseline"]
-    if v is None:
-        return "(baseline)" if r["controller"] == r["baseline"] else "n/a"
-    ci = _fmt((v["diff"], v["diff_lo"], v["diff_hi"]))
-    return f"{ci}, P(better) {v['p_improve']:.2f}"
-
-
-G_MEANING = (
-    "g is the friction penalty removed on the scenario's main metric m, on the same episode: "
-    "g = (m_unc - m) / (m_unc - m_ideal), m_unc the scenario's uncompensated loop, m_ideal that loop on "
-    "the friction-free twin of the episode (the Ideal row). 1 = as if friction were gone, 0 = no better "
-    "than the uncompensated loop, < 0 = worse, > 1 = better than the friction-free loop (feed-forward can "
-    "do that). Where the friction-free loop reaches ~0 (limit score `log`), g counts decades: "
-    "log10(m_unc/m) / log10(m_unc/m_ideal), m_ideal floored at the settling band. Where friction costs "
-    "the uncompensated loop nothing (limit score `none`: the penalty is negative or tiny), g is n/a and "
-    "the table ranks by the metric alone. The old score s = 1 - m/m_Zero stays as a column: doing nothing "
-    "leaves so large an error on most scenarios that every compensator scores 0.99+ on it."
-)
-
-
-def _penalty_line(s: Scenario, pen: float) -> str:
-    kind = {"linear": "scored linearly", "log": "scored in decades", "none": "not scored"}[s.limit_score]
-    pct = "n/a" if not math.isfinite(pen) else f"{100 * pen:.3g} %"
-    return (
-        f"Uncompensated loop: {s.uncompensated}; its friction penalty (median over episodes of "
-        f"(m_unc - m_ideal)/m_unc): {pct}; g {kind} (limit_score: {s.limit_score})."
-    )
-
-
-def _aggregate_md(agg: list[dict]) -> list[str]:
-    lines = []
-    for a in agg:
-        lines += [
-            "",
-            f"### {a['plant']}: {len(a['scenarios'])} scenario(s) ({', '.join(a['scenarios'])})",
-            "",
-            "| rank | controller | IQM of g [95 % CI] |",
-            "|---|---|---|",
-        ]
-        lines += [f"| {i + 1} | {r['controller']} | {_fmt(r['iqm'])} |" for i, r in enumerate(a["rows"])]
-        lines += [f"| (reference) | {r['controller']} | {_fmt(r['iqm'])} |" for r in a["references"]]
-        if len(a["top"]) > 1:
-            top = a["top"]
-            lines += [
-                "",
-                "P(row > column): probability that a run of the row's controller has the higher g "
-                "(rliable's probability of improvement, averaged over the set's scenarios).",
-                "",
-                "| | " + " | ".join(top) + " |",
-                "|---|" + "---|" * len(top),
-            ]
-            for x in top:
-                cells = ["" if x == y else f"{a['p_improve'][(x, y)]:.2f}" for y in top]
-                lines.append(f"| {x} | " + " | ".join(cells) + " |")
-    return lines
-
-
-def markdown(
-    table: dict[str, list[dict]],
-    agg: list[dict],
-    suite: str,
-    scenarios: dict[str, Scenario],
-    penalties: dict[str, float],
-) -> str:
-    lines = [
-        f"# frictiongym leaderboard, suite `{suite}`",
-        "",
-        "Per scenario: mean and 95 % bootstrap interval over the suite's episodes, sorted by the",
-        "scenario's main metric (lower is better; units: the tracked output in rad, m or V, the command in V",
-        "or N·m; see docs/envs.md). Reference rows, on the same episodes and never ranked: `Zero` (doing",
-        "nothing), `Ideal` (the uncompensated loop without the nonlinear friction), `Oracle` (the",
-        "uncompensated loop plus the true friction torque, sampled and delayed as the loop is).",
-        "",
-        G_MEANING,
-        "",
-        "`vs baseline`: the mean per-episode difference of the main metric against the scenario's best",
-        "classical baseline (negative = better), its 95 % interval, and the probability that the controller",
-        "beats the baseline on an episode.",
-        "",
-        "## Per plant",
-        "",
-        "IQM of g over the plant's scored scenarios, 95 % stratified-bootstrap interval. Each set of "
-        "scenarios is ranked on its own: a controller defined for fewer scenarios is never ranked against "
-        "a larger set.",
-    ]
-    lines += _aggregate_md(agg)
-    judged = verdicts(table, scenarios)
-    if judged:
-        lines += [
-            "",
-            "## Learned and plug-in controllers against the best classical baseline",
-            "",
-            "Beats the baseline = lower main metric with the paired 95 % interval of the per-episode "
-            f"difference below 0, effort_rms at most {MAX_EFFORT_RATIO}x the baseline's, and no new "
-            "limit cycle (limit_cycle_amp at most 1.2x the baseline's plus the settling band).",
-            "",
-            "| scenario | controller | baseline | difference of the main metric | effort ratio | limit cycle "
-            "(vs baseline) | beats the baseline |",
-            "|---|---|---|---|---|---|---|",
-        ]
-        for j in judged:
-            v = j["vs_baseline"]
-            lines.append(
-                f"| {j['scenario']} | {j['controller']} | {j['baseline']} | "
-                f"{_fmt((v['diff'], v['diff_lo'], v['diff_hi']))} | {j['effort_ratio']:.2f} | "
-                f"{j['limit_cycle_amp']:.3g} ({j['baseline_limit_cycle_amp']:.3g}) | "
-                + ("yes" if j["beats_baseline"] else f"no: {j['why_not']}")
-                + " |"
-            )
-    for sc, rows in table.items():
-        s = scenarios[sc]
-        sec = list(s.secondary_metrics)
-        lines += [
-            "",
-            f"## {sc}",
-            "",
-            f"Why: {s.why}",
-            "",
-            _penalty_line(s, penalties[sc]),
-            "",
-            f"| controller | episodes | {s.main_metric} (main) | g | 1 - m/m_Zero | "
-            + " | ".join(sec)
-            + " | vs baseline |",
-            "|---|---|---|---|---|" + "---|" * len(sec) + "---|",
-        ]
-        for r in rows:
-            div = f" ({r['diverged']} diverged)" if r["diverged"] else ""
-            name = r["controller"]
-            name = f"*{name}* (reference)" if r["reference"] else name
-            name = f"{name} (uncompensated)" if r["uncompensated"] else name
-            lines.append(
-                f"| {name} | {r['episodes']}{div} | {_fmt(r['main'])} | {_fmt(r['g'])} | "
-                f"{_fmt(r['score'])} | " + " | ".join(_fmt(r["metrics"][m]) for m in sec) + f" | {_vs(r)} |"
-            )
-    return "\n".join(lines) + "\n"
-
-
-def write_table_csv(table: dict[str, list[dict]], scenarios: dict[str, Scenario], path: Path) -> None:
-    """The tables: one row per (scenario, controller): main metric, g and score (mean, lo, hi), the paired
-    comparison against the baseline, and every metric (mean, lo, hi)."""
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(
-        [
-            *("scenario", "controller", "reference", "episodes", "diverged", "main_metric", "main_mean"),
-            *("main_lo", "main_hi", "g_mean", "g_lo", "g_hi", "score_mean", "score_lo", "score_hi"),
-            *("baseline", "diff_mean", "diff_lo", "diff_hi", "p_improve"),
-            *(f"{m}_{k}" for m in METRIC_NAMES for k in ("mean", "lo", "hi")),
-        ]
-    )
-    for sc, rows in table.items():
-        for r in rows:
-            v = r["vs_baseline"] or {}
-            w.writerow(
-                [sc, r["controller"], r["reference"], r["episodes"], r["diverged"], scenarios[sc].main_metric]
-                + [repr(x) for x in (*r["main"], *r["g"], *r["score"])]
-                + [r["baseline"]]
-                + [repr(v.get(k, math.nan)) for k in ("diff", "diff_lo", "diff_hi", "p_improve")]
-                + [repr(x) for m in METRIC_NAMES for x in r["metrics"][m]]
-            )
-    atomic_text(path, buf.getvalue())
-
-
-def write_aggregate_csv(agg: list[dict], path: Path) -> None:
-    """The per-plant aggregates: one row per (plant, set of scenarios, controller), ranked or reference."""
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["plant", "scenarios", "rank", "controller", "iqm_g", "iqm_g_lo", "iqm_g_hi"])
-    for a in agg:
-        scs = " ".join(a["scenarios"])
-        for i, r in enumerate(a["rows"]):
-            w.writerow([a["plant"], scs, i + 1, r["controller"], *(repr(x) for x in r["iqm"])])
-        for r in a["references"]:
-            w.writerow([a["plant"], scs, "reference", r["controller"], *(repr(x) for x in r["iqm"])])
-    atomic_text(path, buf.getvalue())
-
-
-def _save_png(fig, path: Path) -> str:
-    """Save a figure atomically (temporary file, then rename) and close it; returns the file name."""
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    atomic_write(path, lambda p: fig.savefig(p, dpi=110, format="png"))
-    plt.close(fig)
-    return path.name
-
-
-def plots(
-    results: list[EpisodeResult],
-    table: dict[str, list[dict]],
-    agg: list[dict],
-    out: Path,
-    scenarios: dict[str, Scenario],
-    randomize: dict[str, bool],
-    models: tuple[str, ...] = (),
-) -> list[str]:
-    """g per scenario (strip plots; 1 - m/m_Zero where g is not scored), the per-plant IQM of g with
-    intervals, the per-plant performance profiles of g, and per scenario the time responses of its best
-    and worst episodes (by the main metric)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    ctrls = list(dict.fromkeys(r.controller for r in results))
-    colour = {c: f"C{i % 10}" for i, c in enumerate(ctrls)}
-    names = []
-    scs = list(table)
-    fig, axes = plt.subplots(1, len(scs), figsize=(3.2 * len(scs), 3.8), squeeze=False)
-    for ax, sc in zip(axes[0], scs, strict=True):
-        scored = scenarios[sc].limit_score != "none"
-        order = [r["controller"] for r in table[sc] if r["controller"] != ZERO or not scored]
-        for i, c in enumerate(order):
-            mine = [r for r in results if r.scenario == sc and r.controller == c]
-            s = np.array([r.g if scored else r.score for r in mine])
-            jitter = np.random.default_rng(i).uniform(-0.15, 0.15, len(s))
-            ax.plot(i + jitter, s, "o", ms=3, alpha=0.6, color=colour[c])
-            if np.isfinite(s).any():
-                ax.plot([i - 0.3, i + 0.3], [np.nanmean(s)] * 2, "k-", lw=1.5)
-        ax.set_xticks(range(len(order)), order, rotation=45, ha="right", fontsize=7)
-        for y in (0.0, 1.0) if scored else (0.0,):
-            ax.axhline(y, color="0.6", lw=0.8)
-        ax.set_title(sc, fontsize=8)
-        ax.set_ylabel("g (friction penalty removed)" if scored else "1 - m/m_Zero (g not scored)", fontsize=7)
-    names.append(_save_png(fig, out / "scores.png"))
-
-    sets = [a for a in agg if a["rows"]]
-    if sets:
-        fig, axes = plt.subplots(len(sets), 1, figsize=(6.5, sum(0.3 * len(a["rows"]) + 1.2 for a in sets)),
-                                 squeeze=False)  # fmt: skip
-        for ax, a in zip(axes[:, 0], sets, strict=True):
-            rows = a["rows"] + a["references"]
-            for i, r in enumerate(rows):
-                m, lo, hi = r["iqm"]
-                ref = r in a["references"]
-                ax.errorbar(m, i, xerr=[[m - lo], [hi - m]], fmt="s" if ref else "o",
-                            color="0.4" if ref else colour[r["controller"]], capsize=3)  # fmt: skip
-            ax.set_yticks(range(len(rows)), [r["controller"] for r in rows], fontsize=7)
-            ax.invert_yaxis()
-            ax.axvline(1.0, color="0.6", lw=0.8)
-            ax.set_title(f"{a['plant']}: {len(a['scenarios'])} scenario(s)", fontsize=8)
-        axes[-1, 0].set_xlabel("IQM of g (95 % stratified bootstrap)")
-        names.append(_save_png(fig, out / "aggregate_iqm.png"))
-
-        fig, axes = plt.subplots(1, len(sets), figsize=(4.2 * len(sets), 3.6), squeeze=False)
-        for ax, a in zip(axes[0], sets, strict=True):
-            for c, g in a["pooled"].items():
-                ref = c in REFERENCES
-                ax.plot(TAUS, stats.performance_profile(g, TAUS), "--" if ref else "-", label=c,
-                        color="0.4" if ref else colour[c], lw=1)  # fmt: skip
-            ax.set(xlabel="g threshold τ", title=f"{a['plant']}: {len(a['scenarios'])} scenario(s)")
-            ax.legend(fontsize=6)
-        axes[0, 0].set_ylabel("fraction of episodes with g > τ")
-        names.append(_save_png(fig, out / "performance_profile.png"))
-
-    for sc in scs:
-        main = scenarios[sc].main_metric
-        rs = [r for r in results if r.scenario == sc and math.isfinite(r.metrics[main])]
-        if not rs:
-            continue
-        vals = [r.metrics[main] for r in rs]
-        best, worst = with_logs([rs[int(np.argmin(vals))], rs[int(np.argmax(vals))]], randomize[sc], models)
-        fig, ax = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
-        for r, style in ((best, "-"), (worst, "--")):
-            g = r.log
-            lab = f"{r.controller} seed {r.seed} ({main} {r.metrics[main]:.3g})"
-            ax[0].plot(g["t"], g["output"], style, label=f"output, {'best' if r is best else 'worst'}: {lab}")
-            ax[1].step(g["t"], g["command"], style, where="pre")
-        ax[0].plot(best.log["t"], best.log["reference"], "k:", label="reference")
-        ax[0].set(title=f"{sc}: best and worst episode", ylabel="output")
-        ax[0].legend(fontsize=7)
-        ax[1].set(xlabel="t (s)", ylabel="command")
-        names.append(_save_png(fig, out / f"response_{sc}.png"))
-    return names
-
-
 def with_logs(
     picked: list[EpisodeResult], randomize: bool, models: tuple[str, ...] = ()
 ) -> list[EpisodeResult]:
@@ -495,6 +213,58 @@ def with_logs(
         )
         for r in picked
     ]
+
+
+def responses(
+    results: list[EpisodeResult],
+    scenarios: dict[str, Scenario],
+    randomize: dict[str, bool],
+    models: tuple[str, ...] = (),
+) -> dict[str, tuple[EpisodeResult, EpisodeResult]]:
+    """Per scenario, its best and worst episode by the main metric (over every row), re-run with logs."""
+    out = {}
+    for sc in dict.fromkeys(r.scenario for r in results):  # the tables' order (summarize)
+        main = scenarios[sc].main_metric
+        rs = [r for r in results if r.scenario == sc and math.isfinite(r.metrics[main])]
+        if rs:
+            vals = [r.metrics[main] for r in rs]
+            best, worst = rs[int(np.argmin(vals))], rs[int(np.argmax(vals))]
+            out[sc] = tuple(with_logs([best, worst], randomize[sc], models))
+    return out
+
+
+@dataclass
+class Board:
+    """A leaderboard as computed: what leaderboard_report renders."""
+
+    suite: str
+    scenarios: dict[str, Scenario]
+    results: list[EpisodeResult]
+    table: dict[str, list[dict]]  # summarize
+    aggregate: list[dict]  # aggregate
+    verdicts: list[dict]  # verdicts
+    penalties: dict[str, float]  # penalty, per scenario
+    responses: dict[str, tuple[EpisodeResult, EpisodeResult]]  # per scenario: best, worst, with logs
+
+
+def write(board: Board, out: Path) -> None:
+    """leaderboard.csv, aggregate.csv, the figures (PNG) and leaderboard.md (linking them) into out, each
+    atomically."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    atomic_text(out / "leaderboard.csv", report.table_csv(board))
+    atomic_text(out / "aggregate.csv", report.aggregate_csv(board.aggregate))
+    names = []
+    for name, fig in report.figures(board):
+        fig.tight_layout()
+        atomic_write(out / name, lambda p, fig=fig: fig.savefig(p, dpi=110, format="png"))
+        plt.close(fig)
+        names.append(name)
+    md = report.markdown(board)
+    atomic_text(out / "leaderboard.md", md + "\n" + "".join(f"![{f}]({f})\n" for f in names))
 
 
 def run(
@@ -532,12 +302,18 @@ def run(
     for name, scenario, reason in skipped:
         if progress:
             print(f"skipped {name} on {scenario}: {reason}")
-    table, agg = summarize(results, scenarios), aggregate(results, scenarios)
+    table = summarize(results, scenarios)
     if out is not None:
-        write_table_csv(table, scenarios, out / "leaderboard.csv")
-        write_aggregate_csv(agg, out / "aggregate.csv")
-        figs = plots(results, table, agg, out, scenarios, {e.scenario: e.randomize for e in episodes}, models)
-        pens = {sc: penalty(results, s) for sc, s in scenarios.items()}
-        md = markdown(table, agg, suite, scenarios, pens)
-        atomic_text(out / "leaderboard.md", md + "\n" + "".join(f"![{f}]({f})\n" for f in figs))
+        randomize = {e.scenario: e.randomize for e in episodes}
+        board = Board(
+            suite,
+            scenarios,
+            results,
+            table,
+            aggregate(results, scenarios),
+            verdicts(table, scenarios),
+            {sc: penalty(results, s) for sc, s in scenarios.items()},
+            responses(results, scenarios, randomize, models),
+        )
+        write(board, out)
     return results, table
