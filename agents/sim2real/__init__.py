@@ -1,0 +1,95 @@
+"""The sim-to-real friction study (scripts/sim2real.py): `study` computes (the episodes, their summary, the
+closing-the-loop model-error study), `report` renders (sim2real.md's text, the figures), `run` evaluates,
+computes, renders and writes (see study's docstring for the design)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from frictiongym.envs.records import atomic_text, atomic_write, csv_text
+from frictiongym.envs.scenario import load_scenario
+
+from .. import engine, registry
+from ..base import ZERO
+from . import report
+from .study import (
+    AXES,
+    MODEL_ERROR_SEEDS,
+    SEED_RANGE,
+    SEEDS,
+    SET_SPAN,
+    STRUCTURES,
+    model_error,
+    model_error_table,
+    plan,
+    summarize,
+)
+
+__all__ = ["AXES", "MODEL_ERROR_SEEDS", "SEEDS", "SEED_RANGE", "SET_SPAN", "STRUCTURES", "plan", "run"]
+
+
+def _write_png(fig: Any, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    atomic_write(path, lambda p: fig.savefig(p, dpi=90, format="png"))
+    plt.close(fig)
+
+
+def run(
+    scenario: str,
+    controllers: list[str] | None,
+    models: tuple[str, ...],
+    out: Path,
+    seeds: int = 10,
+    points: int = 5,
+    joint: int = 20,
+    workers: int = 1,
+    progress: bool = True,
+    model_error_draws: int = 10,
+    ray: engine.Ray | None = None,
+    structures: tuple[str, ...] = STRUCTURES,
+) -> tuple[list[dict[str, Any]], str]:
+    """Run the study into out/ (episodes.csv, sim2real.csv, sim2real.png, sim2real.md, and the closing-the-
+    loop study model_error.csv / .png); returns the table and the markdown."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+
+    available = registry.available(models)
+    names = controllers or list(available)
+    names = [ZERO, *(n for n in names if n != ZERO)]
+    episodes, rejected = plan(scenario, seeds, points, joint, structures)
+    options = {
+        "structures": list(structures),
+        "study": "sim2real",
+        "scenario": scenario,
+        "seeds": seeds,
+        "points": points,
+        "joint": joint,
+        "controllers": names,
+        "models": list(models),
+    }
+    results, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models, ray)
+    table = summarize(results, scenario)
+    sc = load_scenario(scenario)
+    ran = [n for n in names if n != ZERO and any(r["controller"] == n for r in table)]
+    study = report.Study(
+        scenario, sc.main_metric, sc.spec.friction_model, table, ran, seeds, joint, rejected, skipped
+    )
+    atomic_text(out / "sim2real.csv", csv_text(table))
+    _write_png(report.robustness_figure(table, scenario), out / "sim2real.png")
+    if structures:
+        _write_png(report.structures_figure(table, scenario), out / "sim2real_structures.png")
+    section = None
+    if model_error_draws:
+        classical = [n for n in names if n in registry.BUILTIN and n != ZERO]
+        me = model_error_table(model_error(scenario, classical, model_error_draws, progress))
+        fields = ["controller", "design", "mean", "ci_low", "ci_high", "loss", "loss_low", "loss_high"]
+        atomic_text(out / "model_error.csv", csv_text(me, fields))
+        _write_png(report.model_error_figure(me, sc.main_metric), out / "model_error.png")
+        section = report.model_error_markdown(me, sc.main_metric, model_error_draws)
+    text = report.markdown(study, section)
+    atomic_text(out / "sim2real.md", text)
+    return table, text
