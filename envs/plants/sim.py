@@ -8,14 +8,16 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
-from ..core import mujoco_diverged
 from ..friction import joint_friction_torque
 from ..sampler import JITTER, SENSOR_NOISE, stream
 from ..sensors import SensorArrays
 from . import plant_spec
+from .backend import SingleBackend, mujoco_diverged
 from .mjcf import to_mjcf
-from .params import EpisodeParams, ModelIndex, apply
+from .params import EpisodeParams, ModelIndex
 from .spec import PlantSpec
+
+ONE = np.zeros(1, dtype=int)  # the backend's simulation ids: PlantSim is its n = 1 case
 
 
 @dataclass
@@ -32,18 +34,20 @@ class PlantSim:
     """One compiled plant. Parameters change per episode via reset(params) without recompiling.
 
     Call step(u) once per control period: u (command units: V or N·m) is written to the drive's
-    ctrl and held for spec.substeps physics steps; with delay τ the drive acts on it from t_k + τ.
+    ctrl and held for spec.substeps physics steps; with delay τ the drive acts on it from t_k + τ. The
+    physics runs through the env's single-simulation backend (backend.py), the same calls as the env's.
     """
 
     def __init__(self, spec: PlantSpec | str, overrides: dict | None = None, friction_model: str = "lugre"):
         self.spec = plant_spec(spec, overrides, friction_model) if isinstance(spec, str) else spec
         self.model = mujoco.MjModel.from_xml_string(to_mjcf(self.spec))
-        self.data = mujoco.MjData(self.model)
         self.idx = ModelIndex.of(self.model, self.spec)
+        self.backend = SingleBackend(self.model, self.spec, self.idx)
+        self.data = self.backend.data
         self.params = EpisodeParams.nominal(self.spec)
         self.sensors = SensorArrays.of(self.spec, self.idx.dofs)
         self._seed(0)
-        apply(self.model, self.data, self.spec, self.idx, self.params)
+        self.backend.apply(ONE, [self.params])
 
     @property
     def dofs(self) -> tuple[int, ...]:
@@ -62,14 +66,11 @@ class PlantSim:
         the belt ratios.
         """
         if params is not None:
-            apply(self.model, self.data, self.spec, self.idx, params)
+            self.backend.apply(ONE, [params])
             self.params = params
         if seed is not None:
             self._seed(seed)
-        mujoco.mj_resetData(self.model, self.data)
-        self.data.qpos[:] = self.spec.full_state(qpos)
-        self.data.qvel[:] = self.spec.full_state(qvel)
-        mujoco.mj_forward(self.model, self.data)
+        self.backend.reset_state(ONE, self.spec.full_state(qpos)[None], self.spec.full_state(qvel)[None])
         return self.read()
 
     def _seed(self, seed: int) -> None:
@@ -80,14 +81,12 @@ class PlantSim:
         """Hold command u for one control period (or nstep physics steps); read the sensors at the end."""
         if not np.isfinite(u):
             raise ValueError(f"command must be finite, got {u!r}")
-        self.data.ctrl[self.idx.drive_ctrl] = u
         jmax = self.params.jitter_steps(self.spec)
         if jmax:
             j = int(self.jitter_rng.integers(0, jmax + 1))
-            self.model.actuator_delay[self.idx.drive] = (
-                self.params.delay_steps(self.spec) + j
-            ) * self.spec.timestep
-        mujoco.mj_step(self.model, self.data, nstep or self.spec.substeps)
+            delay = (self.params.delay_steps(self.spec) + j) * self.spec.timestep
+            self.backend.set_delay(ONE, np.array([delay]))
+        self.backend.step(ONE, np.array([u], dtype=float), None, nstep)
         return self.read()
 
     def read(self) -> StepResult:
