@@ -9,6 +9,7 @@ reader is the schema: there is no second list of keys to keep in step with the c
 from __future__ import annotations
 
 import copy
+import functools
 import math
 import re
 from collections.abc import Callable, Iterator, Mapping
@@ -95,7 +96,7 @@ def load_yaml(name_or_path: str | Path, kind: str = "plants") -> dict[str, Any]:
     path = preset_path(name_or_path, kind)
     try:
         text = path.read_text(encoding="utf-8")
-        data = yaml.load(text, Loader=_Loader)
+        data = copy.deepcopy(_parse(text))  # a copy: callers may edit what they are given
     except UnicodeDecodeError as e:
         why = f"not UTF-8 text (byte {e.start}): is it a YAML file?"
         raise ConfigError("(file)", why, str(path)) from None
@@ -111,6 +112,14 @@ def load_yaml(name_or_path: str | Path, kind: str = "plants") -> dict[str, Any]:
     if not isinstance(data, dict):
         raise ConfigError("(file)", "expected a YAML mapping", str(path))
     return data
+
+
+@functools.lru_cache(maxsize=512)
+def _parse(text: str) -> Any:
+    """A YAML text's data, parsed once per process and text: PyYAML's pure-Python parser is 90 % of a
+    scenario's load, and a leaderboard loads each scenario (and its plant and defaults files) several
+    times. Keyed by the text itself, so an edited file is parsed again."""
+    return yaml.load(text, Loader=_Loader)
 
 
 def deep_merge(base: Any, over: Any) -> Any:

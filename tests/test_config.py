@@ -98,3 +98,15 @@ def test_unknown_yaml_key_names_the_file():
         plant_spec("kang_robot", {"rotor": {"inertia": 1.0}})
     with pytest.raises(ConfigError, match=r"configuration\.backlash_device"):
         plant_spec("m220", {"configuration": {"backlash_device": "no"}})
+
+
+def test_yaml_files_are_parsed_once_per_text_and_handed_out_as_copies(tmp_path):
+    """load_yaml memoises the parse by the file's text: an edited file reads anew, and a caller editing
+    what it got does not change what the next caller gets."""
+    f = tmp_path / "p.yaml"
+    f.write_text("a: {b: 1}\n")
+    first = load_yaml(f)
+    first["a"]["b"] = 99
+    assert load_yaml(f) == {"a": {"b": 1}}
+    f.write_text("a: {b: 2}\n")
+    assert load_yaml(f) == {"a": {"b": 2}}
