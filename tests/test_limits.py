@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from frictiongym.agents import leaderboard, registry, stats
+from frictiongym.agents import leaderboard, registry
 from frictiongym.agents.evaluate import EnvCache, EpisodeResult, run_episode
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.metrics import METRIC_NAMES
@@ -73,36 +73,6 @@ def test_oracle_cancels_the_friction_torque_as_sampled():
     iae = {c: run_episode(registry.make(c), ep, envs=envs).metrics["iae"] for c in ("PD", "Ideal", "Oracle")}
     assert iae["Ideal"] < iae["PD"] / 20
     assert iae["Oracle"] == pytest.approx(iae["Ideal"], rel=0.03)
-
-
-def test_limit_score_cases():
-    # linear: half the penalty removed; all of it; worse than the loop; no penalty
-    assert stats.limit_score(3.0, 4.0, 2.0, "linear", 0.1) == pytest.approx(0.5)
-    assert stats.limit_score(2.0, 4.0, 2.0, "linear", 0.1) == pytest.approx(1.0)
-    assert stats.limit_score(5.0, 4.0, 2.0, "linear", 0.1) == pytest.approx(-0.5)
-    assert math.isnan(stats.limit_score(3.0, 2.0, 2.5, "linear", 0.1))  # friction helps: not scored
-    # log: 1e-1 -> 1e-3 is 2 of the 3 decades down to the floor (1e-4, the ideal 1e-8 is below it)
-    assert stats.limit_score(1e-3, 1e-1, 1e-8, "log", 1e-4) == pytest.approx(2 / 3)
-    assert stats.limit_score(0.0, 1e-1, 1e-8, "log", 1e-4) == pytest.approx(6 / 3)  # floored 3 decades
-    assert math.isnan(stats.limit_score(1.0, 1.0, 0.0, "none", 1e-4))
-    assert math.isnan(stats.limit_score(1.0, math.nan, 0.0, "linear", 1e-4))
-
-
-def test_scores_are_attached_from_the_same_episodes_reference_rows():
-    """stats.attach_scores on constructed results: per episode, score = 1 - m/m_Zero and g between the
-    uncompensated loop and Ideal; an episode without its Ideal row leaves g nan, not another episode's."""
-    scoring = {"s": stats.Scoring("iae", "PID", "linear", 0.0)}
-
-    def r(c: str, seed: int, iae: float) -> EpisodeResult:
-        return EpisodeResult(c, "s", seed, {"iae": iae}, 0.0, False, randomize=True)
-
-    results = [r("Zero", 1, 2.0), r("PID", 1, 1.0), r("Ideal", 1, 0.5), r("FF", 1, 0.75)]
-    results += [r("Zero", 2, 4.0), r("PID", 2, 2.0), r("FF", 2, 1.0)]
-    stats.attach_scores(results, scoring)
-    got = {(x.controller, x.seed): (x.score, x.g) for x in results}
-    assert got[("FF", 1)] == (1 - 0.75 / 2.0, (1.0 - 0.75) / (1.0 - 0.5))
-    assert got[("PID", 1)] == (0.5, 0.0) and got[("Ideal", 1)] == (0.75, 1.0) and got[("Zero", 1)][0] == 0.0
-    assert got[("FF", 2)][0] == 0.75 and math.isnan(got[("FF", 2)][1])
 
 
 def _result(c: str, sc: str, seed: int, g: float) -> EpisodeResult:
