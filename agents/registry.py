@@ -68,7 +68,9 @@ MODELS_DIR = Path(__file__).parent / "models"  # committed trained models, by gr
 
 def committed_models(group: str) -> list[Path]:
     """The committed model folders of a group (agents/models/<group>/*/manifest.yaml): `headline` (on the
-    default leaderboard) or `sim2real` (the friction-randomisation study's agents)."""
+    default leaderboard), `sim2real` (the friction-randomisation study's agents) or `generalist` (one
+    compensator per plant for all of its scenarios, docs/training.md "Generalists"; on the leaderboard
+    with `--models agents/models/generalist`)."""
     folder = MODELS_DIR / group
     return sorted(d for d in folder.iterdir() if (d / MANIFEST).is_file()) if folder.is_dir() else []
 
