@@ -169,3 +169,24 @@ def test_plantsim_noise_matches_the_env_for_the_same_seed():
     sim.reset(qpos=[0.349066], seed=4)
     r = sim.step(0.0)
     assert obs[0] == np.float32(r.measurement[0] / env.scenario.output_scale)
+
+
+@pytest.mark.parametrize("scenario", ["kang_regulation", "m220_reversal_tracking_hard"])
+def test_plantsim_and_the_env_step_the_same_physics(scenario):
+    """PlantSim is the env's single-simulation backend (plants/backend.py) with n = 1: on an episode's
+    drawn parameters and initial state, the same commands give the env's joint trajectory bit for bit
+    (the M220 case with the hard scenario's actuation delay and jitter, drawn from the same seed)."""
+    env = ServoEnv(scenario, randomize=True)
+    env.reset(seed=7)
+    core = env.core
+    p, q0, v0 = core.params[0], core.backend.qpos.copy(), core.backend.qvel.copy()
+    sim = PlantSim(env.scenario.spec)
+    sim.reset(p, qpos=q0, qvel=v0, seed=7)
+    actions = np.random.default_rng(0).uniform(-0.6, 0.6, 60).astype(np.float32)
+    for a in actions:
+        env.step(np.array([a]))
+        sim.step(float(a) * env.scenario.action_scale)
+        assert np.array_equal(sim.data.qpos, core.backend.qpos)
+        assert np.array_equal(sim.data.qvel, core.backend.qvel)
+    if scenario.endswith("hard"):
+        assert p.jitter_steps(sim.spec) > 0  # the per-period jitter draws were exercised
