@@ -24,13 +24,14 @@ from pathlib import Path
 import numpy as np
 
 from frictiongym.envs.metrics import METRIC_NAMES
-from frictiongym.envs.records import atomic_text, atomic_write
+from frictiongym.envs.records import atomic_text
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.suites import Episode, load_suite
 
 from . import engine, registry, stats
 from . import leaderboard_report as report
 from .evaluate import EnvCache, EpisodeResult, run_episode
+from .figures import save_figure
 
 REFERENCES = registry.REFERENCES  # Zero, Ideal, Oracle: run on every episode, never ranked
 TOP = 5  # entries per set in the probability-of-improvement matrix
@@ -250,19 +251,9 @@ class Board:
 def write(board: Board, out: Path) -> None:
     """leaderboard.csv, aggregate.csv, the figures (PNG) and leaderboard.md (linking them) into out, each
     atomically."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     atomic_text(out / "leaderboard.csv", report.table_csv(board))
     atomic_text(out / "aggregate.csv", report.aggregate_csv(board.aggregate))
-    names = []
-    for name, fig in report.figures(board):
-        fig.tight_layout()
-        atomic_write(out / name, lambda p, fig=fig: fig.savefig(p, dpi=110, format="png"))
-        plt.close(fig)
-        names.append(name)
+    names = [save_figure(fig, out, name) for name, fig in report.figures(board)]
     md = report.markdown(board)
     atomic_text(out / "leaderboard.md", md + "\n" + "".join(f"![{f}]({f})\n" for f in names))
 

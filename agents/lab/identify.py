@@ -20,8 +20,9 @@ from tqdm import tqdm
 
 from frictiongym.envs.config import configs_dir
 from frictiongym.envs.plants import plant_config, plant_spec
-from frictiongym.envs.records import atomic_text, atomic_write, command_line, package_version
+from frictiongym.envs.records import atomic_text, command_line, package_version
 
+from ..figures import save_figure
 from . import experiments as ex
 from .identification import (
     IDENTIFIABLE,
@@ -106,9 +107,7 @@ def _plot_static(fid: FrictionId, unit: str, path: Path, truth: dict[str, float]
     ax.set(xlabel="speed (rad/s)", ylabel=f"command ({unit})", xscale="symlog", title="steady-state friction")
     ax.axhline(0, color="0.8", lw=0.5)
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    atomic_write(path, lambda p: fig.savefig(p, dpi=90, format="png"))
-    plt.close(fig)
+    save_figure(fig, path.parent, path.name, dpi=90)
 
 
 # ------------------------------------------------------------------------------------------- step
@@ -422,9 +421,7 @@ def _plot_document(t: dict[str, np.ndarray], values: dict[str, float], path: Pat
         ax.plot(v, s * values[c] + values["viscous_per_rad_s"] * rad * v, "-", label="recommended fit")
     ax.set(xlabel="velocity (counts/s)", ylabel="control (V)", title="seed 000 §2.3")
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    atomic_write(path, lambda p: fig.savefig(p, dpi=90, format="png"))
-    plt.close(fig)
+    save_figure(fig, path.parent, path.name, dpi=90)
 
 
 def recovery(plants: list[str], draws: int) -> tuple[str, dict[str, dict[str, list[float]]]]:

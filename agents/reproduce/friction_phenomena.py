@@ -26,7 +26,8 @@ from frictiongym.envs.friction import joint_levels
 from frictiongym.envs.plants import PlantSpec, plant_spec
 from frictiongym.envs.units import deg_to_rad
 
-from .report import Section, row, save_figure
+from ..figures import save_figure
+from .report import Section, row
 
 STRUCTURES = ("lugre", "dahl", "maxwell_slip", "kang", "coulomb")  # native: the simulator's plants
 REFERENCE = tuple(radau.REFERENCE_STRUCTURES)  # reference implementations only (never a plant)

@@ -15,7 +15,8 @@ from frictiongym.envs.config import Node
 from frictiongym.envs.plants import m220, plant_config, plant_spec
 from frictiongym.envs.plants.sim import PlantSim
 
-from .report import Section, row, save_figure
+from ..figures import save_figure
+from .report import Section, row
 
 CONFIGS = {
     "default": {},

@@ -14,9 +14,10 @@ import numpy as np
 from frictiongym.envs.config import Node
 from frictiongym.envs.plants import plant_spec
 
+from ..figures import save_figure
 from ..lab import closed_loop, idim
 from ..lab.drive_log import emps_log
-from .report import Section, published_node, row, save_figure
+from .report import Section, published_node, row
 
 # The published estimates are printed to 4 decimals: 1e-4 absolute is twice their rounding. The relative
 # errors and norms are printed to 4-5 significant digits: 1e-4 relative.

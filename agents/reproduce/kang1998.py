@@ -19,7 +19,8 @@ from frictiongym.envs.units import rad_to_deg
 
 from ..classical import PD, RDFC, Southward
 from ..evaluate import EpisodeResult, run_episode
-from .report import Section, published_node, row, save_figure
+from ..figures import save_figure
+from .report import Section, published_node, row
 
 EPISODE = Episode("kang_regulation_20deg", 0, False)  # θ(0) = 20 deg, set-point 0, 20 ms, nominal plant
 SOUTHWARD_PERIODS_MS = (5, 20, 40)

@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 
 from frictiongym.envs.config import Node, configs_dir, load_yaml
-from frictiongym.envs.records import atomic_write
 
 
 def row(
@@ -83,16 +82,6 @@ def run_section(section: Section, out: Path | None = None) -> SectionResult:
     figs = section.figures(data, out) if (out is not None and section.figures) else []
     text = section.findings(data, rows) if section.findings else ""
     return SectionResult(section, rows, figs, text)
-
-
-def save_figure(fig, out: Path, fname: str, dpi: int = 110) -> str:
-    """Write a figure as PNG (atomically), close it, return its file name."""
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    atomic_write(out / fname, lambda p: fig.savefig(p, dpi=dpi, format="png"))
-    plt.close(fig)
-    return fname
 
 
 def markdown(results: list[SectionResult]) -> str:

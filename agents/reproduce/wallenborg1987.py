@@ -26,7 +26,8 @@ from ..classical.state_feedback import (
     state_feedback_design,
 )
 from ..evaluate import EpisodeResult, run_episode
-from .report import Section, published, row, save_figure
+from ..figures import save_figure
+from .report import Section, published, row
 
 FREQS_HZ = (0.1, 0.3, 1.0, 1.78, 3.0, 10.0)
 DESIGNS = {  # id -> (w_cl, sensor, h)

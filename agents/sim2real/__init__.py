@@ -7,11 +7,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from frictiongym.envs.records import atomic_text, atomic_write, csv_text
+from frictiongym.envs.records import atomic_text, csv_text
 from frictiongym.envs.scenario import load_scenario
 
 from .. import engine, registry
 from ..base import ZERO
+from ..figures import save_figure
 from . import report
 from .study import (
     AXES,
@@ -27,14 +28,6 @@ from .study import (
 )
 
 __all__ = ["AXES", "MODEL_ERROR_SEEDS", "SEEDS", "SEED_RANGE", "SET_SPAN", "STRUCTURES", "plan", "run"]
-
-
-def _write_png(fig: Any, path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    fig.tight_layout()
-    atomic_write(path, lambda p: fig.savefig(p, dpi=90, format="png"))
-    plt.close(fig)
 
 
 def run(
@@ -79,16 +72,16 @@ def run(
         scenario, sc.main_metric, sc.spec.friction_model, table, ran, seeds, joint, rejected, skipped
     )
     atomic_text(out / "sim2real.csv", csv_text(table))
-    _write_png(report.robustness_figure(table, scenario), out / "sim2real.png")
+    save_figure(report.robustness_figure(table, scenario), out, "sim2real.png", dpi=90)
     if structures:
-        _write_png(report.structures_figure(table, scenario), out / "sim2real_structures.png")
+        save_figure(report.structures_figure(table, scenario), out, "sim2real_structures.png", dpi=90)
     section = None
     if model_error_draws:
         classical = [n for n in names if n in registry.BUILTIN and n != ZERO]
         me = model_error_table(model_error(scenario, classical, model_error_draws, progress))
         fields = ["controller", "design", "mean", "ci_low", "ci_high", "loss", "loss_low", "loss_high"]
         atomic_text(out / "model_error.csv", csv_text(me, fields))
-        _write_png(report.model_error_figure(me, sc.main_metric), out / "model_error.png")
+        save_figure(report.model_error_figure(me, sc.main_metric), out, "model_error.png", dpi=90)
         section = report.model_error_markdown(me, sc.main_metric, model_error_draws)
     text = report.markdown(study, section)
     atomic_text(out / "sim2real.md", text)

@@ -27,6 +27,7 @@ from frictiongym.envs.scenario import load_scenario
 from ..base import ZERO
 from ..engine import init_worker, provenance, stop_workers
 from ..evaluate import EnvCache
+from ..figures import save_figure
 from ..learned import (
     algorithm_class,
 )
@@ -313,9 +314,7 @@ def plot_curve(
     ax[1].axhline(baseline.effort_rms, color="k", ls="--")
     ax[1].set(ylabel="effort_rms", xlabel="training steps")
     ax[0].set_title(title)
-    fig.tight_layout()
-    atomic_write(path, lambda p: fig.savefig(p, dpi=90, format="png"))
-    plt.close(fig)
+    save_figure(fig, path.parent, path.name, dpi=90)
 
 
 # ------------------------------------------------------------------------------------------- runs
