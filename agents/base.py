@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import copy
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -84,6 +86,35 @@ class Controller(ABC):
     def params(self) -> dict[str, Any]:
         """The controller's own parameters (for reports)."""
         return {}
+
+    def lockstep(self, n: int) -> Lockstep:
+        """The controller for n episodes of one scenario run together (evaluate.run_episodes): this one
+        for the first and a deep copy for each other, each acting on its own episode's observation. A
+        controller that can act on every episode in one call overrides it (SB3Policy: one network call)."""
+        return Lockstep([self, *(copy.deepcopy(self) for _ in range(n - 1))])
+
+
+class Lockstep:
+    """One controller per episode for n episodes stepped together: row i of an observation array is
+    episode i's observation, and each episode's action is what its own controller gives for it alone."""
+
+    def __init__(self, controllers: Sequence[Controller]):
+        self.controllers = list(controllers)
+        self.reads_truth = self.controllers[0].reads_truth
+
+    def reset(self, ctx: EpisodeContext) -> None:
+        """Every episode's start (they share a scenario and a design plant)."""
+        for c in self.controllers:
+            c.reset(ctx)
+
+    def observe_truth(self, row: int, truth: dict[str, np.ndarray], params: EpisodeParams) -> None:
+        """Episode `row`'s ground truth now (controllers with reads_truth)."""
+        self.controllers[row].observe_truth(truth, params)
+
+    def act(self, obs: np.ndarray, rows: np.ndarray) -> list[Any]:
+        """The actions of episodes `rows` for their observations (one row each), as each controller
+        returns it."""
+        return [self.controllers[r].act(o) for r, o in zip(rows, obs, strict=True)]
 
 
 class PhysicalController(Controller):

@@ -37,11 +37,11 @@ from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
 
 from . import registry
-from .evaluate import EnvCache, EpisodeResult, params_text, run_episode
+from .evaluate import LOCKSTEP, EnvCache, EpisodeResult, params_text, run_episodes
 from .stats import Scoring, attach_scores
 
 PARENT_POLL_S = 0.5  # how often a pool worker checks that its parent is alive (s)
-CHUNK = 4  # episodes per task: small, so a killed run loses little and the pool stays balanced
+CHUNK = LOCKSTEP  # episodes per task, stepped together; a killed run loses little, the pool stays balanced
 THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "MUJOCO_NUM_THREADS")
 FIELDS = (  # episodes.csv's columns: the job's identity (Job.key), the result, provenance
     "controller",
@@ -165,15 +165,17 @@ def run_interruptibly(fn: Callable[[], int], resume: str) -> int:
 
 
 def run_chunk(jobs: list[Job], prov: dict[str, str], models: tuple[str, ...] = ()) -> list[EpisodeResult]:
-    """The results of some jobs, in this process (controllers and envs cached per process); `models`: the
-    saved-model folders the registry loads (registry.available)."""
-    results = []
-    for job in jobs:
-        if job.controller not in _CONTROLLERS:
-            _CONTROLLERS[job.controller] = registry.make(job.controller, models)
-        r = run_episode(_CONTROLLERS[job.controller], job.episode, envs=_ENVS)
+    """The results of some jobs of one controller (a chunk), in this process, stepped together
+    (evaluate.run_episodes); controllers and envs are cached per process; `models`: the saved-model
+    folders the registry loads (registry.available)."""
+    name = jobs[0].controller
+    if any(j.controller != name for j in jobs):
+        raise ValueError(f"a chunk runs one controller; got {sorted({j.controller for j in jobs})}")
+    if name not in _CONTROLLERS:
+        _CONTROLLERS[name] = registry.make(name, models)
+    results = run_episodes(_CONTROLLERS[name], [j.episode for j in jobs], envs=_ENVS)
+    for r in results:
         r.provenance = prov
-        results.append(r)
     return results
 
 

@@ -11,6 +11,7 @@ import numpy as np
 from tqdm import tqdm
 
 from frictiongym.envs import env_id
+from frictiongym.envs.core import ServoCore, check_action, check_options
 from frictiongym.envs.plants import PlantSpec
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.servo_env import ServoEnv
@@ -59,6 +60,9 @@ def _jsonable(x: Any) -> Any:
     return x.tolist() if hasattr(x, "tolist") else str(x)
 
 
+LOCKSTEP = 10  # episodes of one controller and env stepped together at most (evaluate, the engine's chunks)
+
+
 class EnvCache:
     """Envs by (scenario, randomize, the controller's hardware, env arguments): an evaluation builds each
     once and resets it per episode (every random quantity comes from the episode's seed)."""
@@ -66,6 +70,7 @@ class EnvCache:
     def __init__(self) -> None:
         self._envs: dict[str, ServoEnv] = {}
         self._scenarios: dict[str, Scenario] = {}
+        self._cores: dict[tuple[int, int], ServoCore] = {}  # by (id of the env, kept in _envs; n)
 
     def scenario(self, episode: Episode, **env_kwargs: Any) -> Scenario:
         """The scenario as the user configured it, with the episode's structural keys (without any
@@ -78,19 +83,35 @@ class EnvCache:
             self._scenarios[key] = load_scenario(episode.scenario, user, randomize=episode.randomize, **kw)
         return self._scenarios[key]
 
-    def env(self, controller: Controller, episode: Episode, **env_kwargs: Any) -> ServoEnv:
-        """The env for this controller on this episode's scenario, with the hardware it brings and the
-        observation it reads."""
+    def key(self, controller: Controller, episode: Episode, **env_kwargs: Any) -> str:
+        """The identity of the env this controller runs this episode on: episodes with equal keys can be
+        stepped together."""
+        return json.dumps(self._env_args(controller, episode, env_kwargs), sort_keys=True, default=str)
+
+    def _env_args(self, controller: Controller, episode: Episode, env_kwargs: dict[str, Any]) -> list:
         kw = _with_structure(episode, env_kwargs)
         overrides = controller_overrides(
             controller, self.scenario(episode, **env_kwargs), kw.pop("overrides", None)
         )
-        key = json.dumps([episode.scenario, episode.randomize, overrides, kw], sort_keys=True, default=str)
+        return [episode.scenario, episode.randomize, overrides, kw]
+
+    def env(self, controller: Controller, episode: Episode, **env_kwargs: Any) -> ServoEnv:
+        """The env for this controller on this episode's scenario, with the hardware it brings and the
+        observation it reads."""
+        args = self._env_args(controller, episode, env_kwargs)
+        key = json.dumps(args, sort_keys=True, default=str)
         if key not in self._envs:
-            self._envs[key] = ServoEnv(
-                episode.scenario, randomize=episode.randomize, overrides=overrides, **kw
-            )
+            scenario, randomize, overrides, kw = args
+            self._envs[key] = ServoEnv(scenario, randomize=randomize, overrides=overrides, **kw)
         return self._envs[key]
+
+    def core(self, env: ServoEnv, n: int) -> ServoCore:
+        """A batched core of n simulations of the env's scenario (one thread: the engine's processes are
+        the parallelism), kept per env and n."""
+        key = (id(env), n)
+        if key not in self._cores:
+            self._cores[key] = ServoCore(env.scenario, n, nthread=1, batch=True)
+        return self._cores[key]
 
 
 def _with_structure(episode: Episode, env_kwargs: dict[str, Any]) -> dict[str, Any]:
@@ -123,43 +144,106 @@ def run_episode(
     design: PlantSpec | None = None,
     **env_kwargs: Any,
 ) -> EpisodeResult:
-    """Run one suite episode. The controller's own hardware (plant_overrides) is added to the scenario;
-    everything random comes from the episode's seed, so every controller sees the same episode. With
-    `envs`, the env is taken from (and kept in) that cache. `design`: the plant model the controller is
-    designed on (default: the scenario's nominal preset, with the scenario's own friction structure when
-    the episode pins another: controllers are designed on the plant they were written for), e.g. an
-    identified one."""
+    """Run one suite episode (run_episodes with one episode: the single env)."""
+    return run_episodes(controller, [episode], keep_log, knowledge, envs, design, **env_kwargs)[0]
+
+
+def run_episodes(
+    controller: Controller,
+    episodes: list[Episode],
+    keep_log: bool = False,
+    knowledge: dict | None = None,
+    envs: EnvCache | None = None,
+    design: PlantSpec | None = None,
+    **env_kwargs: Any,
+) -> list[EpisodeResult]:
+    """Run suite episodes of one controller, the one evaluation loop. The controller's own hardware
+    (plant_overrides) is added to the scenario; everything random comes from the episode's seed, so every
+    controller sees the same episode. Episodes that share an env (scenario, randomisation, structure) run
+    together, stepped as one batch with one Lockstep of the controller (a learned one calls its network
+    once per step for all of them); a single episode runs on the single env. Either way each result is
+    the episode's alone, bit for bit (the vector core equals the single env, a Lockstep acts on each row
+    as its controller alone would: tests). With `envs`, envs are taken from (and kept in) that cache.
+    `design`: the plant model the controller is designed on (default: the scenario's nominal preset, with
+    the scenario's own friction structure when the episode pins another: controllers are designed on the
+    plant they were written for), e.g. an identified one. Results in the episodes' order."""
     cache = envs or EnvCache()
-    env = cache.env(controller, episode, **env_kwargs)
+    groups: dict[str, list[int]] = {}
+    for i, e in enumerate(episodes):
+        groups.setdefault(cache.key(controller, e, **env_kwargs), []).append(i)
+    results: list[EpisodeResult | None] = [None] * len(episodes)
+    for members in groups.values():
+        together = _run_together(
+            controller, [episodes[i] for i in members], keep_log, knowledge, cache, design, env_kwargs
+        )
+        for i, r in zip(members, together, strict=True):
+            results[i] = r
+    return results  # type: ignore[return-value]  # every index filled
+
+
+def _run_together(
+    controller: Controller,
+    episodes: list[Episode],
+    keep_log: bool,
+    knowledge: dict | None,
+    cache: EnvCache,
+    design: PlantSpec | None,
+    env_kwargs: dict[str, Any],
+) -> list[EpisodeResult]:
+    """Episodes sharing one env (see run_episodes), stepped together until each has ended."""
+    first = episodes[0]
+    env = cache.env(controller, first, **env_kwargs)
     sc = env.scenario  # its spec holds the nominal (document) plant; the episode's draw is hidden
     if design is None:
-        own = replace(episode, params=tuple(kv for kv in episode.params if kv[0] not in STRUCTURAL))
-        design = cache.scenario(own, **env_kwargs).spec if episode.overrides() else sc.spec
+        own = replace(first, params=tuple(kv for kv in first.params if kv[0] not in STRUCTURAL))
+        design = cache.scenario(own, **env_kwargs).spec if first.overrides() else sc.spec
     know = {**knowledge_defaults(), **(knowledge or {})}
-    obs, _ = env.reset(seed=episode.seed, options=episode.options())
-    controller.reset(EpisodeContext(sc, design, know))
-    total, done, info = 0.0, False, {}
-    truth = controller.reads_truth
-    while not done:
-        if truth:
-            controller.observe_truth(env.ground_truth(), env.core.params[0])
-        obs, reward, term, trunc, info = env.step(controller.act(obs))
-        total += reward
-        done = term or trunc
-    log = {k: v.copy() for k, v in env.core.episode_log(0).items()} if keep_log else None
-    return EpisodeResult(
-        controller.name,
-        episode.scenario,
-        episode.seed,
-        env.core.metrics(0),  # every metric (info leaves the undefined ones out; results write n/a)
-        total,
-        bool(info.get("diverged", False)),
-        log,
-        randomize=episode.randomize,
-        params=params_text(episode),
-        controller_params=json.dumps(controller.params(), sort_keys=True, default=_jsonable),
-        env_id=env_id(sc.spec.name),
-    )
+    n = len(episodes)
+    rows = np.arange(n)
+    obs = np.zeros((n, env.core.obs_dim), dtype=np.float32)
+    if n == 1:
+        core = env.core
+        obs[0] = env.reset(seed=first.seed, options=first.options())[0]
+    else:
+        core = cache.core(env, n)
+        for i, e in enumerate(episodes):
+            obs[i] = core.reset(rows[i : i + 1], [e.seed], check_options(e.options()))[0]
+    team = controller.lockstep(n)
+    team.reset(EpisodeContext(sc, design, know))
+    totals, diverged, live = [0.0] * n, [False] * n, rows
+    while len(live):
+        if team.reads_truth:
+            for i in live:
+                team.observe_truth(int(i), core.ground_truth(int(i)), core.params[i])
+        actions = team.act(obs[live], live)
+        if n == 1:
+            o, reward, term, trunc, info = env.step(actions[0])
+            o, r, ended, flags = o[None], [reward], np.array([term or trunc]), [info.get("diverged", False)]
+        else:
+            a = np.array([check_action(u, 1)[0] for u in actions])
+            o, r, term, trunc, info = core.step(a, live)
+            ended, flags = term | trunc, info["diverged"]
+        obs[live] = o
+        for j, i in enumerate(live):
+            totals[i] += float(r[j])
+            diverged[i] = bool(flags[j])
+        live = live[~ended]
+    return [
+        EpisodeResult(
+            controller.name,
+            e.scenario,
+            e.seed,
+            core.metrics(i),  # every metric (info leaves the undefined ones out; results write n/a)
+            totals[i],
+            diverged[i],
+            {k: v.copy() for k, v in core.episode_log(i).items()} if keep_log else None,
+            randomize=e.randomize,
+            params=params_text(e),
+            controller_params=json.dumps(controller.params(), sort_keys=True, default=_jsonable),
+            env_id=env_id(sc.spec.name),
+        )
+        for i, e in enumerate(episodes)
+    ]
 
 
 def evaluate(
@@ -169,10 +253,18 @@ def evaluate(
     progress: bool = True,
     **kw: Any,
 ) -> list[EpisodeResult]:
-    """Every applicable controller on every episode, in order, in this process, with a progress bar."""
+    """Every applicable controller on every episode, in this process, with a progress bar; each
+    controller's episodes run LOCKSTEP at a time (run_episodes). Results episode-major, controllers in the
+    given order."""
     envs = EnvCache()
-    jobs = [(c, e) for e in episodes for c in controllers if c.applies_to(envs.scenario(e))]
-    return [
-        run_episode(c, e, keep_log=keep_logs, envs=envs, **kw)
-        for c, e in tqdm(jobs, desc="episodes", unit="ep", disable=not progress)
-    ]
+    runs = []
+    for j, c in enumerate(controllers):
+        mine = [i for i, e in enumerate(episodes) if c.applies_to(envs.scenario(e))]
+        runs += [(j, c, mine[k : k + LOCKSTEP]) for k in range(0, len(mine), LOCKSTEP)]
+    out: dict[tuple[int, int], EpisodeResult] = {}  # by (episode, controller)
+    with tqdm(total=sum(len(m) for *_, m in runs), desc="episodes", unit="ep", disable=not progress) as bar:
+        for j, c, members in runs:
+            results = run_episodes(c, [episodes[i] for i in members], keep_logs, envs=envs, **kw)
+            out.update({(i, j): r for i, r in zip(members, results, strict=True)})
+            bar.update(len(members))
+    return [out[k] for k in sorted(out)]

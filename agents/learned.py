@@ -10,6 +10,7 @@ action, used by the training wrapper (agents/training/) and by SB3Policy alike.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import hashlib
 import importlib
@@ -22,7 +23,7 @@ import numpy as np
 
 from frictiongym.envs.scenario import Scenario
 
-from .base import Controller, EpisodeContext
+from .base import Controller, EpisodeContext, Lockstep
 
 
 @dataclasses.dataclass(frozen=True)
@@ -56,15 +57,19 @@ class PolicyInputs:
 
 
 def policy_observation(obs: np.ndarray, base_action: np.ndarray | None) -> np.ndarray:
-    """The model's input: the env's observation, then the base action in residual mode (float32)."""
+    """The model's input: the env's observation, then the base action in residual mode (float32). One
+    observation (d,) with one base action, or rows (n, d) with one base action per row."""
     if base_action is None:
         return obs
-    return np.concatenate([obs, np.asarray(base_action, dtype=np.float32).reshape(1)])
+    base = np.asarray(base_action, dtype=np.float32).reshape(*obs.shape[:-1], 1)
+    return np.concatenate([obs, base], axis=-1)
 
 
 def residual_action(base_action: np.ndarray, residual: np.ndarray, alpha: float) -> np.ndarray:
-    """u = clip(u_base + α·u_res, -1, 1): the residual has authority α of the full command range."""
-    u = np.asarray(base_action, dtype=np.float64).reshape(1) + alpha * np.asarray(residual).reshape(1)
+    """u = clip(u_base + α·u_res, -1, 1): the residual has authority α of the full command range
+    (elementwise: one action (1,) or rows (n, 1))."""
+    base = np.asarray(base_action, dtype=np.float64)
+    u = base + alpha * np.asarray(residual).reshape(base.shape)
     return np.clip(u, -1.0, 1.0).astype(np.float32)
 
 
@@ -104,10 +109,7 @@ def sha256(path: str | Path) -> str:
 def _chain(module: Any) -> list[Callable[[Any], Any]]:
     """The forward functions of a module's leaves in call order (Sequentials flattened), called without
     torch's per-module dispatch; a leaf's forward is the computation its call makes (no hooks are set)."""
-    children = list(module.children())
-    if type(module).__name__ == "Sequential":
-        return [f for child in children for f in _chain(child)]
-    return [module.forward]
+    return [leaf.forward for leaf in _leaves(module)]
 
 
 def deterministic_actor(policy: Any) -> Callable[[Any], Any]:
@@ -135,6 +137,95 @@ def deterministic_actor(policy: Any) -> Callable[[Any], Any]:
         return h
 
     return act
+
+
+def tree_sum(p: np.ndarray) -> np.ndarray:
+    """Σ over axis 1 of p (n, k, m) by a fixed pairwise tree of elementwise additions (the first half of
+    the terms plus the second, until one is left): every output element is the same sequence of IEEE
+    operations whatever n and the other rows hold, so a row summed in a batch equals that row alone."""
+    while (k := p.shape[1]) > 1:
+        half = k // 2
+        head = p[:, :half] + p[:, half : 2 * half]
+        p = np.concatenate([head, p[:, 2 * half :]], axis=1) if k % 2 else head
+    return p[:, 0]
+
+
+@dataclasses.dataclass(frozen=True)
+class RowwiseActor:
+    """A deterministic SB3 actor as numpy layers whose rows never interact, for evaluating many episodes
+    with one call per step (evaluate.run_episodes): a batch of observations gets, row for row and bit
+    for bit, the actions each would get alone. torch's batched matrix products do not promise that (on
+    this machine rows of a 20-row batch differed from single rows in the last bit).
+
+    Each layer is computed in float64: the exact float32 x float32 products, summed by tree_sum, plus the
+    bias; then ReLU or tanh; the action is rounded to float32 once, at the end. It is the network
+    function to ~1e-15, where torch's float32 forward differs from it by float32 rounding (a few 1e-8 per
+    action on the committed models; tests bound it). Built for a SAC / TQC / CrossQ actor (the squashed
+    Gaussian's mode tanh(mu(latent_pi(features)))) or a TD3 actor (mu(features)) of Linear, ReLU and Tanh
+    layers on a flatten or a column-selecting (asymmetric) features extractor; `of` gives None for any
+    other network."""
+
+    columns: tuple[int, ...] | None  # the features extractor's selection of observation columns (None: all)
+    # ("linear", Wᵀ (in, out), b (out,)) or ("relu" | "tanh", None, None), in call order
+    layers: tuple[tuple[str, np.ndarray | None, np.ndarray | None], ...]
+
+    @classmethod
+    def of(cls, policy: Any) -> RowwiseActor | None:
+        """The actor of a feed-forward SB3 policy, or None if it has layers this class does not know."""
+        from stable_baselines3.common.distributions import SquashedDiagGaussianDistribution  # the rl extra
+
+        actor = getattr(policy, "actor", None)
+        if actor is None or not hasattr(actor, "mu") or getattr(actor, "use_sde", False):
+            return None
+        extractor = type(actor.features_extractor).__name__
+        if extractor == "SelectFeatures":  # agents/asymmetric.py: the actor's columns of the observation
+            columns = tuple(int(i) for i in actor.features_extractor.indices.tolist())
+        elif extractor == "FlattenExtractor" and len(policy.observation_space.shape) == 1:
+            columns = None
+        else:
+            return None
+        if hasattr(actor, "latent_pi"):
+            if not isinstance(actor.action_dist, SquashedDiagGaussianDistribution):
+                return None
+            modules = [*_leaves(actor.latent_pi), *_leaves(actor.mu)]
+        else:
+            modules = _leaves(actor.mu)
+        layers = []
+        for m in modules:
+            kind = type(m).__name__
+            if kind == "Linear":
+                w = m.weight.detach().cpu().numpy().astype(np.float64).T.copy()
+                b = np.zeros(w.shape[1]) if m.bias is None else m.bias.detach().cpu().numpy()
+                b = b.astype(np.float64)
+                layers.append(("linear", w, b))
+            elif kind in ("ReLU", "Tanh"):
+                layers.append((kind.lower(), None, None))
+            else:
+                return None
+        if hasattr(actor, "latent_pi"):
+            layers.append(("tanh", None, None))
+        return cls(columns, tuple(layers))
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """The actions (n, k), float32, for model inputs (n, d)."""
+        h = np.asarray(x, dtype=np.float64)
+        if self.columns is not None:
+            h = h[:, self.columns]
+        for kind, w, b in self.layers:
+            if kind == "linear":
+                h = tree_sum(h[:, :, None] * w) + b
+            elif kind == "relu":
+                h = np.maximum(h, 0.0)
+            else:
+                h = np.tanh(h)
+        return h.astype(np.float32)
+
+
+def _leaves(module: Any) -> list[Any]:
+    """A module's leaves in call order (Sequentials flattened)."""
+    if type(module).__name__ == "Sequential":
+        return [leaf for child in module.children() for leaf in _leaves(child)]
+    return [module]
 
 
 class LearnedNeeds:
@@ -204,6 +295,7 @@ class SB3Policy(LearnedNeeds, Controller):
         self.jax = is_jax(model)
         self.hashes: dict[str, str] = {}
         self._actor: Callable[[Any], Any] | None = None  # deterministic_actor(policy), built on first use
+        self._rowwise: RowwiseActor | bool | None = None  # RowwiseActor.of(policy) on first use; False: none
         self._device: Any = None  # the policy's torch device, read with _actor
 
     @classmethod
@@ -242,21 +334,55 @@ class SB3Policy(LearnedNeeds, Controller):
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         ub = self.base.act(obs) if self.base is not None else None
-        x = policy_observation(obs, ub)
+        return self.actions(obs[None], None if ub is None else np.asarray(ub).reshape(1, 1))[0]
+
+    def actions(self, obs: np.ndarray, base: np.ndarray | None) -> np.ndarray:
+        """The actions (n, 1) for observation rows (n, d) and, in residual mode, the base actions (n, 1):
+        the model input, the frozen normaliser, the network and the residual, each row's action the same
+        whatever the other rows hold (one network call for a RowwiseActor, one per row otherwise)."""
+        x = policy_observation(obs, base)
         if self.normalizer is not None:
             x = self.normalizer.normalize_obs(x).astype(np.float32)
+        a = self._network(x)
+        if base is None:
+            return np.clip(np.asarray(a, dtype=np.float32), -1.0, 1.0)
+        return residual_action(base, a, self.alpha)
+
+    def _network(self, x: np.ndarray) -> np.ndarray:
+        """The deterministic model's actions (n, k) for model inputs (n, d)."""
+        if self.recurrent:  # one episode's state: lockstep() gives each episode its own replica
+            rows = []
+            for row in x:
+                a, self.state = self.model.predict(
+                    row, state=self.state, episode_start=self.start, deterministic=True
+                )
+                self.start = np.zeros(1, dtype=bool)
+                rows.append(a)
+            return np.asarray(rows)
+        if self.jax:
+            return np.asarray([self.model.predict(row, deterministic=True)[0] for row in x])
+        if self._rowwise is None:
+            self._rowwise = RowwiseActor.of(self.model.policy) or False
+        if self._rowwise is False:
+            return np.asarray([self._predict(row) for row in x])
+        a = self._rowwise(x)
+        policy = self.model.policy
+        if policy.squash_output:
+            return policy.unscale_action(a)
+        return np.clip(a, policy.action_space.low, policy.action_space.high)
+
+    def lockstep(self, n: int) -> Lockstep:
+        """n episodes with one network call per step for all of them: one copy of the base per episode
+        (PolicyLockstep); a recurrent policy keeps one state per episode, so each gets a replica."""
         if self.recurrent:
-            a, self.state = self.model.predict(
-                x, state=self.state, episode_start=self.start, deterministic=True
-            )
-            self.start = np.zeros(1, dtype=bool)
-        elif self.jax:
-            a = self.model.predict(x, deterministic=True)[0]
-        else:
-            a = self._predict(x)
-        if ub is None:
-            return np.clip(np.asarray(a, dtype=np.float32).reshape(1), -1.0, 1.0)
-        return residual_action(ub, a, self.alpha)
+            return Lockstep([self, *(self.replica() for _ in range(n - 1))])
+        return PolicyLockstep(self, n)
+
+    def replica(self) -> SB3Policy:
+        """Another controller on the same model and normaliser, with its own base and episode state."""
+        twin = copy.copy(self)
+        twin.base = copy.deepcopy(self.base)
+        return twin
 
     def _predict(self, x: np.ndarray) -> np.ndarray:
         """model.predict(x, deterministic=True) of a feed-forward policy, the same torch operations on the
@@ -285,3 +411,24 @@ class SB3Policy(LearnedNeeds, Controller):
         if self.base is not None:
             out |= {"base": self.base.name, "alpha": self.alpha}
         return out
+
+
+class PolicyLockstep(Lockstep):
+    """An SB3Policy on n episodes: each episode's base controller acts on its own row, then one call of
+    SB3Policy.actions for every row (row for row the actions each episode gets alone)."""
+
+    def __init__(self, policy: SB3Policy, n: int):
+        super().__init__([policy])
+        self.policy = policy
+        self.bases = policy.base.lockstep(n) if policy.base is not None else None
+
+    def reset(self, ctx: EpisodeContext) -> None:
+        self.policy.reset(ctx)
+        if self.bases is not None:
+            self.bases.reset(ctx)
+
+    def act(self, obs: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        if self.bases is None:
+            return self.policy.actions(obs, None)
+        base = np.array([np.asarray(u).reshape(1) for u in self.bases.act(obs, rows)])  # dtypes as act's
+        return self.policy.actions(obs, base)

@@ -1,8 +1,10 @@
 """The leaderboard's evaluation speed: the full `default` suite (all scenarios x its episodes x all built-in
 controllers and the reference rows Ideal and Oracle; no learned models) with 1 worker and with N workers,
-and with --ray on a local Ray with 1 and N workers, measured side by side in one run.
+with --ray on a local Ray with 1 and N workers, and with --models on N workers with the saved models of
+those folders added (the default leaderboard's own run: target at most 1.3x the classical-only time),
+measured side by side in one run.
 
-    python scripts/bench_leaderboard.py [--workers 2] [--ray]
+    python scripts/bench_leaderboard.py [--workers 2] [--ray] [--models agents/models/headline] [--no-serial]
 
 Prints the physics floor first (the suite's physics steps per plant times a bare mj_step loop's time per
 step: what no evaluation code can go below), then the wall time of each run, the speed-ups, the Ray
@@ -57,12 +59,19 @@ def _timed_steps(m: mujoco.MjModel, d: mujoco.MjData) -> float:
     return time.perf_counter() - t0
 
 
-def timed(workers: int, out: Path, ray: engine.Ray | None = None) -> tuple[float, int]:
-    """Wall time of the default suite into out (for Ray: including the start of its local instance)."""
+def timed(
+    workers: int, out: Path, ray: engine.Ray | None = None, models: tuple[str, ...] = ()
+) -> tuple[float, int]:
+    """Wall time of the default suite into out (for Ray: including the start of its local instance), with
+    the saved models of `models` added to the built-in controllers."""
     episodes = load_suite("default")
     t0 = time.perf_counter()
-    names = [*registry.BUILTIN, *registry.LIMITS]
-    rows, _ = engine.evaluate_to(out, names, episodes, {"bench": 1}, workers, False, (), ray)
+    names = [
+        *registry.BUILTIN,
+        *registry.LIMITS,
+        *(n for n in registry.available(models) if n not in registry.BUILTIN and n not in registry.LIMITS),
+    ]
+    rows, _ = engine.evaluate_to(out, names, episodes, {"bench": 1}, workers, False, models, ray)
     return time.perf_counter() - t0, len(rows)
 
 
@@ -70,11 +79,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 2)
     ap.add_argument("--ray", action="store_true", help="also the Ray backend (pip install -e .[distributed])")
+    ap.add_argument("--models", nargs="+", default=[], help="also the suite with these saved-model folders")
+    ap.add_argument("--no-serial", dest="serial", action="store_false", help="skip the 1-worker run")
     args = ap.parse_args()
     physics_floor(args.workers)
     with tempfile.TemporaryDirectory() as d:
-        times = {"serial": timed(1, Path(d) / "serial")}
+        times = {"serial": timed(1, Path(d) / "serial")} if args.serial else {}
         times["pool"] = timed(args.workers, Path(d) / "pool")
+        if args.models:
+            learned = timed(args.workers, Path(d) / "models", models=tuple(args.models))
         if args.ray:
             import ray
 
@@ -82,11 +95,20 @@ def main() -> None:
                 times[name] = timed(n, Path(d) / name, engine.Ray())
                 ray.shutdown()
         files = {k: (Path(d) / k / "episodes.csv").read_bytes() for k in times}
-    n = times["serial"][1]
+    n = times["pool"][1]
     print(f"default suite: {n} episodes (built-in controllers and the reference rows)")
-    print(f"local, 1 worker:  {times['serial'][0]:6.1f} s")
-    speedup = times["serial"][0] / times["pool"][0]
-    print(f"local, {args.workers} workers: {times['pool'][0]:6.1f} s   speed-up {speedup:.2f}x")
+    if args.serial:
+        print(f"local, 1 worker:  {times['serial'][0]:6.1f} s")
+        speedup = times["serial"][0] / times["pool"][0]
+        print(f"local, {args.workers} workers: {times['pool'][0]:6.1f} s   speed-up {speedup:.2f}x")
+    else:
+        print(f"local, {args.workers} workers: {times['pool'][0]:6.1f} s")
+    if args.models:
+        ratio = learned[0] / times["pool"][0]
+        print(
+            f"with the models of {' '.join(args.models)}: {learned[1]} episodes, {learned[0]:6.1f} s on "
+            f"{args.workers} workers, {ratio:.2f}x the classical-only time (target <= 1.3x)"
+        )
     if args.ray:
         r1, r = times["ray1"][0], times["ray"][0]
         print(f"ray,   1 worker:  {r1:6.1f} s")

@@ -20,3 +20,29 @@ def test_a_saved_models_applicability_from_its_manifest_equals_the_loaded_models
             assert from_manifest(sc) == loaded.why_not(sc), (name, sc.name)
             applies += from_manifest(sc) is None
     assert 0 < applies < len(names) * len(scenarios)  # some apply, some are refused (other plants, shapes)
+
+
+def test_every_committed_model_acts_through_the_rowwise_actor_within_float32_rounding_of_predict():
+    """The leaderboard's learned rows use one network call per step for a chunk's episodes only for
+    actors RowwiseActor knows; every committed model's is one, and its actions are model.predict's to
+    float32 rounding (|difference| <= 1e-5 on inputs spread over the normalised range: torch sums 64
+    float32 terms per unit, measured up to 1.2e-6 here)."""
+    import numpy as np
+
+    from frictiongym.agents.learned import RowwiseActor
+
+    folders = [
+        *registry.committed_models("headline"),
+        *registry.committed_models("sim2real"),
+        *registry.committed_models("generalist"),
+    ]
+    models = tuple(str(f) for f in folders)
+    rng = np.random.default_rng(2)
+    for name in registry._manifests(models):
+        model = registry.make(name, models).model
+        model.policy.set_training_mode(False)
+        actor = RowwiseActor.of(model.policy)
+        assert actor is not None, name
+        x = rng.normal(0.0, 2.0, (50, *model.observation_space.shape)).astype(np.float32)
+        want = np.array([model.predict(row, deterministic=True)[0] for row in x])
+        assert np.abs(model.policy.unscale_action(actor(x)) - want).max() <= 1e-5, name

@@ -24,7 +24,7 @@ from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import load_suite, suite_held_out
 
 from ..base import ZERO, Controller
-from ..evaluate import EnvCache, run_episode
+from ..evaluate import EnvCache, run_episodes
 from ..learned import (
     SB3Policy,
     algorithm_class,
@@ -54,7 +54,7 @@ def validation_episodes(scenario: str, suite: str = VALIDATION_SUITE) -> list:
 
 def evaluate_controller(controller: Controller, episodes: list, envs: EnvCache) -> dict[str, float]:
     """Means of every metric over the episodes, through the one evaluation loop."""
-    rows = [run_episode(controller, e, envs=envs).metrics for e in episodes]
+    rows = [r.metrics for r in run_episodes(controller, episodes, envs=envs)]
     return {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
 
 
