@@ -220,7 +220,10 @@ def _run_together(
             o, reward, term, trunc, info = env.step(actions[0])
             o, r, ended, flags = o[None], [reward], np.array([term or trunc]), [info.get("diverged", False)]
         else:
-            a = np.array([check_action(u, 1)[0] for u in actions])
+            if isinstance(actions, np.ndarray):  # a lockstep's array of actions, one row per episode
+                a = check_action(actions, len(live))
+            else:
+                a = np.array([check_action(u, 1)[0] for u in actions])
             o, r, term, trunc, info = core.step(a, live)
             ended, flags = term | trunc, info["diverged"]
         obs[live] = o

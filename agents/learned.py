@@ -5,7 +5,10 @@ classical base controller and with frozen observation-normalisation statistics.
 The model's input is the env's observation (with the history / privileged blocks the model was trained
 with, which the controller asks the env for) followed, in residual mode, by the base controller's action.
 `policy_observation` and `residual_action` are the one implementation of that input and of the combined
-action, used by the training wrapper (agents/training/) and by SB3Policy alike.
+action, used by the training wrapper (agents/training/) and by SB3Policy alike. `SB3Policy.actions` acts
+on many episodes' observations in one call (the leaderboard's and validation's batched episodes,
+evaluate.run_episodes): its network is a `RowwiseActor`, whose rows never interact, so each episode gets
+the action it would get alone.
 """
 
 from __future__ import annotations
