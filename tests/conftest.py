@@ -1,6 +1,11 @@
 """Test markers: `slow` marks a test that trains, runs a suite or a study (identification, a stiff ODE
 reference), sends real signals or starts a service; the inner loop is `python -m pytest -m "not slow"`,
-CI runs everything."""
+CI runs everything. Helpers shared by test modules: `lockstep` (single vs vector env bit for bit) and
+`write_config` (a small training config, test_training and test_learned)."""
+
+from pathlib import Path
+
+import yaml
 
 
 def pytest_configure(config):
@@ -45,3 +50,49 @@ def lockstep(scenario: str, kw: dict, keys: tuple[str, ...], copy_at: int, seed:
     for a, o0 in after:  # continues bit for bit
         assert np.array_equal(twin.step(a)[0], o0)
     return singles
+
+
+# ------------------------------------------------------------------ small training configs
+SCENARIO = "flexible_speed_step"  # 250 steps per episode: the cheapest validation episodes
+HYPER = {
+    "SAC": {"learning_starts": 0, "batch_size": 32, "buffer_size": 2000, "policy_kwargs": {"net_arch": [16]}},
+    "TD3": {"learning_starts": 0, "batch_size": 32, "buffer_size": 2000, "action_noise_std": 0.01},
+    "TQC": {"learning_starts": 0, "batch_size": 32, "buffer_size": 2000, "policy_kwargs": {"n_critics": 2}},
+    "CrossQ": {
+        "learning_starts": 0,
+        "batch_size": 32,
+        "buffer_size": 2000,
+        "policy_kwargs": {"net_arch": [16]},
+    },
+    "sbx.SAC": {
+        "learning_starts": 0,
+        "batch_size": 32,
+        "buffer_size": 2000,
+        "policy_kwargs": {"net_arch": [16]},
+    },
+    "sbx.CrossQ": {
+        "learning_starts": 0,
+        "batch_size": 32,
+        "buffer_size": 2000,
+        "policy_kwargs": {"net_arch": [16]},
+    },
+    "PPO": {"n_steps": 128, "batch_size": 64, "n_epochs": 1},
+    "RecurrentPPO": {"n_steps": 128, "batch_size": 64, "n_epochs": 1},
+}
+
+
+def write_config(tmp_path: Path, algo: str, steps: int = 256, **extra) -> Path:
+    entry = {"residual": {"base": "PID", "alpha": 0.1}, **extra}
+    cfg = {
+        "name": f"Smoke{algo.replace('.', '_')}",
+        "algorithm": algo,
+        "defaults": {
+            "total_timesteps": steps,
+            "validation": {"every_steps": 128, "episodes": 2, "max_effort_ratio": 100.0},
+            "hyperparams": HYPER[algo],
+        },
+        "scenarios": {SCENARIO: entry},
+    }
+    path = tmp_path / f"{algo}.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    return path

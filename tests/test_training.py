@@ -15,12 +15,13 @@ import yaml
 
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("sb3_contrib")
+from conftest import SCENARIO, write_config
 
 from frictiongym.agents import registry
 from frictiongym.agents.base import EpisodeContext
 from frictiongym.agents.engine import plan
 from frictiongym.agents.evaluate import EnvCache, run_episode
-from frictiongym.agents.learned import PolicyInputs, RowwiseActor, SB3Policy
+from frictiongym.agents.learned import SB3Policy
 from frictiongym.agents.settings import knowledge_defaults
 from frictiongym.agents.training import (
     EXPORTED,
@@ -39,49 +40,6 @@ from frictiongym.envs.config import ConfigError
 from frictiongym.envs.suites import load_suite
 
 ROOT = Path(__file__).parents[1]
-SCENARIO = "flexible_speed_step"  # 250 steps per episode: the cheapest validation episodes
-HYPER = {
-    "SAC": {"learning_starts": 0, "batch_size": 32, "buffer_size": 2000, "policy_kwargs": {"net_arch": [16]}},
-    "TD3": {"learning_starts": 0, "batch_size": 32, "buffer_size": 2000, "action_noise_std": 0.01},
-    "TQC": {"learning_starts": 0, "batch_size": 32, "buffer_size": 2000, "policy_kwargs": {"n_critics": 2}},
-    "CrossQ": {
-        "learning_starts": 0,
-        "batch_size": 32,
-        "buffer_size": 2000,
-        "policy_kwargs": {"net_arch": [16]},
-    },
-    "sbx.SAC": {
-        "learning_starts": 0,
-        "batch_size": 32,
-        "buffer_size": 2000,
-        "policy_kwargs": {"net_arch": [16]},
-    },
-    "sbx.CrossQ": {
-        "learning_starts": 0,
-        "batch_size": 32,
-        "buffer_size": 2000,
-        "policy_kwargs": {"net_arch": [16]},
-    },
-    "PPO": {"n_steps": 128, "batch_size": 64, "n_epochs": 1},
-    "RecurrentPPO": {"n_steps": 128, "batch_size": 64, "n_epochs": 1},
-}
-
-
-def write_config(tmp_path: Path, algo: str, steps: int = 256, **extra) -> Path:
-    entry = {"residual": {"base": "PID", "alpha": 0.1}, **extra}
-    cfg = {
-        "name": f"Smoke{algo.replace('.', '_')}",
-        "algorithm": algo,
-        "defaults": {
-            "total_timesteps": steps,
-            "validation": {"every_steps": 128, "episodes": 2, "max_effort_ratio": 100.0},
-            "hyperparams": HYPER[algo],
-        },
-        "scenarios": {SCENARIO: entry},
-    }
-    path = tmp_path / f"{algo}.yaml"
-    path.write_text(yaml.safe_dump(cfg))
-    return path
 
 
 def train(
@@ -375,14 +333,6 @@ def test_committed_configs_load():
         assert load_config(name)
 
 
-def test_policy_inputs_sizes():
-    """The model input: the scenario's observation with its history / privileged blocks, then the base
-    action."""
-    sc = EnvCache().scenario(validation_episodes(SCENARIO)[0])
-    assert PolicyInputs().size(sc) == sc.layout.size
-    assert PolicyInputs(2, False, True).size(sc) == sc.layout.size + 2 * (len(sc.spec.sensors) + 1) + 1
-
-
 @pytest.mark.slow
 def test_sim2real_on_a_tiny_grid(tmp_path):
     """scripts/sim2real.py: one-axis shifts (inadmissible pins left out), joint in/out-of-distribution sets,
@@ -432,105 +382,6 @@ def test_sim2real_on_a_tiny_grid(tmp_path):
     episodes, _ = sim2real.plan("kang_regulation", 1, 2, 1)
     assert n == 1 + 2 * len(episodes)
     assert main(args) == 0 and len((tmp_path / "episodes.csv").read_text().splitlines()) == n
-
-
-@pytest.mark.parametrize(
-    ("algo", "privileged"),
-    [("SAC", False), ("TD3", False), ("TQC", False), ("CrossQ", False), ("PPO", False), ("SAC", True),
-     ("TD3", True)],
-)
-def test_policy_actions_equal_sb3_predict(tmp_path, algo, privileged):
-    """SB3Policy's own prediction path (no per-call eval-mode switch, no action distribution, its layers
-    called as a plain chain) gives model.predict's actions bit for bit, in range and out of it, also after
-    training switched the policy back to train mode, and with the asymmetric actor's feature selection."""
-    extra = {"observation": {"privileged_critic": True}} if privileged else {}
-    (cfg,) = load_config(write_config(tmp_path, algo, **extra))
-    model = build_model(cfg, make_training_env(cfg, 0), 0, None)
-    assert type(model.policy).__name__.startswith("Asymmetric") == privileged
-    import torch
-
-    with torch.no_grad():  # a non-trivial actor: the zeroed output layer would make every action equal
-        for p in model.policy.parameters():
-            p.add_(0.05 * torch.randn_like(p))
-    policy = SB3Policy(model, inputs=cfg.inputs, base=registry.BUILTIN["PID"]())  # the config's residual base
-    xs = np.random.default_rng(0).normal(0.0, 3.0, (50, *model.observation_space.shape)).astype(np.float32)
-    model.policy.set_training_mode(True)
-    got = np.array([policy._predict(x) for x in xs])
-    assert not model.policy.training
-    want = np.array([model.predict(x, deterministic=True)[0] for x in xs])
-    assert np.array_equal(got, want) and len(np.unique(got)) > 10
-
-
-@pytest.mark.parametrize(
-    ("algo", "privileged", "rowwise"),
-    [("SAC", False, True), ("TD3", False, True), ("TQC", False, True), ("SAC", True, True),
-     ("TD3", True, True), ("CrossQ", False, False), ("PPO", False, False)],
-)
-def test_policy_rows_act_as_each_row_alone(tmp_path, algo, privileged, rowwise):
-    """SB3Policy.actions on a batch of observations gives, row for row and bit for bit, the action each
-    row gets alone (what lets the leaderboard run a learned model's episodes with one network call per
-    step); the row-wise float64 actor (SAC-family and TD3 actors of Linear/ReLU/Tanh layers, the
-    asymmetric actor's column selection included) is model.predict's network to float32 rounding, and any
-    other actor (CrossQ's batch renormalisation, PPO) is called one row at a time."""
-    extra = {"observation": {"privileged_critic": True}} if privileged else {}
-    (cfg,) = load_config(write_config(tmp_path, algo, **extra))
-    model = build_model(cfg, make_training_env(cfg, 0), 0, None)
-    import torch
-
-    with torch.no_grad():  # a non-trivial actor: the zeroed output layer would make every action equal
-        for p in model.policy.parameters():
-            p.add_(0.05 * torch.randn_like(p))
-    model.policy.set_training_mode(False)
-    assert (RowwiseActor.of(model.policy) is not None) == rowwise
-    policy = SB3Policy(model, inputs=cfg.inputs, base=registry.BUILTIN["PID"]())
-    d = model.observation_space.shape[0] - 1  # the env's observation; the base action is appended
-    rng = np.random.default_rng(0)
-    obs = rng.normal(0.0, 3.0, (64, d)).astype(np.float32)
-    base = rng.uniform(-1.0, 1.0, (64, 1)).astype(np.float32)
-    together = policy.actions(obs, base)
-    alone = np.concatenate([policy.actions(obs[i : i + 1], base[i : i + 1]) for i in range(64)])
-    assert together.shape == (64, 1) and np.array_equal(together, alone)
-    assert np.array_equal(policy.actions(obs[:7], base[:7]), together[:7])
-    x = np.concatenate([obs, base], axis=1)
-    want = np.array([model.predict(row, deterministic=True)[0] for row in x])
-    got = policy._network(x)
-    assert np.abs(got - want).max() <= (1e-5 if rowwise else 0.0) and len(np.unique(got)) > 10
-
-
-def test_tree_sum_is_a_fixed_pairwise_order():
-    """tree_sum adds the first half of the terms to the second until one is left: exact on integers,
-    within float64 rounding of math.fsum otherwise, and a row's sum does not depend on the other rows."""
-    import math
-
-    from frictiongym.agents.learned import tree_sum
-
-    rng = np.random.default_rng(1)
-    ints = rng.integers(-1000, 1000, (3, 13, 4)).astype(np.float64)
-    assert np.array_equal(tree_sum(ints), ints.sum(axis=1))
-    p = rng.normal(size=(5, 37, 3)) * 10.0 ** rng.integers(-8, 8, (5, 37, 3))
-    exact = np.array([[math.fsum(p[i, :, j]) for j in range(3)] for i in range(5)])
-    assert np.allclose(tree_sum(p), exact, rtol=1e-12, atol=1e-12 * np.abs(p).sum())
-    assert np.array_equal(tree_sum(p)[2:3], tree_sum(p[2:3]))
-    # the tree's order, written out for five terms: ((a + c) + (b + d)) + e
-    a, b, c, d, e = 1e16, 1.0, -1e16, 1.0, 1.0
-    assert tree_sum(np.array([[[a], [b], [c], [d], [e]]]))[0, 0] == ((a + c) + (b + d)) + e
-
-
-def test_algorithm_class_names_the_missing_rl_extra(monkeypatch):
-    from frictiongym.agents import learned
-
-    assert learned.algorithm_class("TQC").__name__ == "TQC"
-    with pytest.raises(ValueError, match=r"'Nope' is not a stable-baselines3 or sb3-contrib class$"):
-        learned.algorithm_class("Nope")
-
-    def no_sb3(name: str):
-        raise ImportError(name)
-
-    monkeypatch.setattr(learned.importlib, "import_module", no_sb3)
-    with pytest.raises(ValueError, match=r"stable_baselines3 and sb3_contrib not installed: pip install"):
-        learned.algorithm_class("SAC")
-    with pytest.raises(ValueError, match=r"needs sbx: pip install -e '\.\[sbx\]'"):
-        learned.algorithm_class("sbx.SAC")
 
 
 @pytest.mark.slow
