@@ -25,7 +25,13 @@ from pathlib import Path
 
 from frictiongym.agents.engine import run_interruptibly
 from frictiongym.agents.sweeps import METRIC, load_sweep, run_sweep
-from frictiongym.agents.training import config_names, export_model, load_config, train_many
+from frictiongym.agents.training import (
+    NothingSelected,
+    config_names,
+    export_model,
+    load_config,
+    train_many,
+)
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.records import atomic_text, csv_text
 
@@ -74,6 +80,9 @@ def main(argv: list[str] | None = None) -> int:
     if code:
         return code
     for m in manifests:
+        if isinstance(m, NothingSelected):
+            print(f"no model: {m}")
+            continue
         v = m["validation"]
         b = v["best_classical"]
         print(

@@ -25,6 +25,7 @@ from frictiongym.agents.learned import SB3Policy
 from frictiongym.agents.settings import knowledge_defaults
 from frictiongym.agents.training import (
     EXPORTED,
+    NothingSelected,
     ResidualEnv,
     TrainingRun,
     build_model,
@@ -32,6 +33,7 @@ from frictiongym.agents.training import (
     load_config,
     make_training_env,
     sb3_schedule,
+    train_many,
     training_env_kwargs,
     validation_episodes,
 )
@@ -68,6 +70,24 @@ def test_every_algorithm_trains_and_its_saved_model_acts_identically(tmp_path, a
     episodes = validation_episodes(SCENARIO)[:2]
     main = [run_episode(c, e, envs=envs).metrics[manifest["validation"]["main_metric"]] for e in episodes]
     assert np.mean(main) == manifest["validation"]["value"]
+
+
+@pytest.mark.slow
+def test_a_run_that_selects_nothing_is_reported_and_the_other_runs_go_on(tmp_path):
+    """A run none of whose validation evaluations meets the effort rule (here: at most 1e-9 x the
+    baseline's effort) selects no model; train_many returns its NothingSelected, naming the rule and the
+    rows, in its place among the other runs' manifests instead of stopping them."""
+    ok = write_config(tmp_path, "SAC")
+    strict = yaml.safe_load(ok.read_text())
+    strict["name"] = "Strict"
+    strict["defaults"]["validation"]["max_effort_ratio"] = 1e-9
+    (tmp_path / "strict.yaml").write_text(yaml.safe_dump(strict))
+    cfgs = [*load_config(tmp_path / "strict.yaml"), *load_config(ok)]
+    first, second = train_many(cfgs, [0], tmp_path / "runs", False, 1)
+    assert isinstance(first, NothingSelected)
+    assert "Strict-flexible_speed_step-s0: no validation evaluation had effort_rms <= 1e-09 x" in str(first)
+    assert "nothing to select" in str(first) and "validation.csv" in str(first)
+    assert second["name"] == "SmokeSAC-flexible_speed_step-s0" and second["selected_step"] > 0
 
 
 @pytest.mark.slow

@@ -36,7 +36,7 @@ from .config import (
 )
 from .env import ResidualEnv, make_training_env, training_env_kwargs
 from .model import build_model, zero_output
-from .run import EXPORTED, TrainingRun, export_model, run_dir, train_many, train_one
+from .run import EXPORTED, NothingSelected, TrainingRun, export_model, run_dir, train_many, train_one
 from .validation import (
     Baseline,
     Snapshot,
@@ -62,6 +62,7 @@ __all__ = [
     "VALIDATION_SUITE",
     "Baseline",
     "Manifest",
+    "NothingSelected",
     "ResidualEnv",
     "RunConfig",
     "Snapshot",

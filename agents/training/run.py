@@ -47,6 +47,12 @@ from .validation import (
 )
 from .vec_env import SEEDS_PER_RUN, TRAINING_SEEDS
 
+VALIDATION_CSV = "validation.csv"  # a run's validation rows, one per evaluation
+
+
+class NothingSelected(RuntimeError):
+    """A run none of whose validation evaluations met the effort rule: no model, a result to report."""
+
 
 class TrainingRun:
     """One (config, scenario, seed) run into `out`, resumable from out/checkpoint."""
@@ -145,7 +151,7 @@ class TrainingRun:
         if row["admissible"] and (self.best is None or row["main"] < self.best["main"]):
             self.best = row
             snap.write(self.out)
-        atomic_text(self.out / "validation.csv", csv_text(self.history))
+        atomic_text(self.out / VALIDATION_CSV, csv_text(self.history))
         if self.reporter is not None:
             self.reporter(row)
 
@@ -242,9 +248,9 @@ class TrainingRun:
                 self.pool.shutdown(cancel_futures=True)
                 self.pool = None
         if self.best is None:
-            raise RuntimeError(
+            raise NothingSelected(
                 f"{self.name}: no validation evaluation had effort_rms <= {cfg.max_effort_ratio} x "
-                f"{self.effort_ref:.4g} (the baseline's): nothing to select"
+                f"{self.effort_ref:.4g} (the baseline's): nothing to select (rows: {out / VALIDATION_CSV})"
             )
         manifest = self.manifest(model.num_timesteps)
         manifest.write(out)
@@ -322,7 +328,7 @@ def run_dir(out: Path, cfg: RunConfig, seed: int) -> Path:
     return Path(out) / cfg.name / cfg.scenario / f"seed{seed}"
 
 
-EXPORTED = (MODEL, NORMALIZER, MANIFEST, "validation.csv", "training_curve.png")
+EXPORTED = (MODEL, NORMALIZER, MANIFEST, VALIDATION_CSV, "training_curve.png")
 
 
 def export_model(run: Path, dest: Path) -> Path:
@@ -336,18 +342,23 @@ def export_model(run: Path, dest: Path) -> Path:
     return folder
 
 
-def train_one(args: tuple[RunConfig, int, str, str, bool, bool]) -> dict[str, Any]:
+def train_one(args: tuple[RunConfig, int, str, str, bool, bool]) -> dict[str, Any] | NothingSelected:
     """One run (picklable for a process pool): (config, seed, out dir, command, resume, progress), its
-    validation beside it."""
+    validation beside it; its manifest, or the NothingSelected of a run that selected no model."""
     cfg, seed, out, command, resume, progress = args
     with contextlib.redirect_stdout(sys.stderr) if not progress else contextlib.nullcontext():
-        return TrainingRun(cfg, seed, Path(out), command, progress, parallel_validation=True).train(resume)
+        run = TrainingRun(cfg, seed, Path(out), command, progress, parallel_validation=True)
+        try:
+            return run.train(resume)
+        except NothingSelected as e:  # a result of the run, not a failure of the others
+            return e
 
 
 def train_many(
     cfgs: Sequence[RunConfig], seeds: Sequence[int], out: Path, resume: bool, workers: int
-) -> list[dict[str, Any]]:
-    """Every (config, seed) run; with workers > 1 on a spawn pool, one torch thread each."""
+) -> list[dict[str, Any] | NothingSelected]:
+    """Every (config, seed) run, in order: its manifest, or NothingSelected for a run that selected no
+    model (the others go on); with workers > 1 on a spawn pool, one torch thread each."""
     command = command_line()
     jobs = [(c, s, str(run_dir(out, c, s)), command, resume, workers == 1) for c in cfgs for s in seeds]
     if workers == 1:
