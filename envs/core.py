@@ -15,7 +15,7 @@ import numpy as np
 
 from .friction import element_levels, elements, joint_friction_torque, joint_levels
 from .metrics import episode_metrics
-from .plants.backend import BatchBackend, SingleBackend
+from .plants.backend import BatchBackend, SingleBackend, period_delay
 from .plants.mjcf import to_mjcf
 from .plants.params import EpisodeParams, ModelIndex
 from .sampler import DRIFT, INITIAL_STATE, JITTER, SENSOR_NOISE, stream
@@ -268,8 +268,9 @@ class ServoCore:
         command = a * self.sc.action_scale
         jittered = ids[self.jitter_steps[ids] > 0]
         if len(jittered):
-            j = np.array([self.jitter_rng[i].integers(0, self.jitter_steps[i] + 1) for i in jittered])
-            self.backend.set_delay(jittered, (self.delay_steps[jittered] + j) * self.sc.spec.timestep)
+            h, rng, d, j = self.sc.spec.timestep, self.jitter_rng, self.delay_steps, self.jitter_steps
+            delays = np.array([period_delay(rng[i], d[i], j[i], h) for i in jittered])
+            self.backend.set_delay(jittered, delays)
         rows = self.rows[ids]
         dist = self.disturbance[rows, self.k[ids]] if self.disturbance is not None else None
         if self.drift is not None:  # the levels over this period
@@ -310,8 +311,8 @@ class ServoCore:
         a = x if -1.0 <= x <= 1.0 else (1.0 if x > 0.0 else -1.0)  # the clip, as the vector path's
         command = a * sc.action_scale
         if self.jitter_steps[0]:
-            j = self.jitter_rng[0].integers(0, self.jitter_steps[0] + 1)
-            self.backend.set_delay(self._all, np.array([(self.delay_steps[0] + j) * sc.spec.timestep]))
+            d = period_delay(self.jitter_rng[0], self.delay_steps[0], self.jitter_steps[0], sc.spec.timestep)
+            self.backend.set_delay(self._all, np.array([d]))
         b = self.backend
         b.ctrl[self.idx.drive_ctrl] = command
         if self._disturbance is not None:

@@ -25,6 +25,13 @@ DIVERGENCE_WARNINGS = np.array(
 _DIVERGENCE_COUNTS = itemgetter(*DIVERGENCE_WARNINGS.tolist())  # their counts from a list of all counts
 
 
+def period_delay(jitter: np.random.Generator, delay_steps: int, jitter_steps: int, timestep: float) -> float:
+    """The actuation delay over one control period (s): the episode's delay plus 0..jitter_steps whole
+    physics steps, one uniform draw of the episode's jitter stream per period. The one jitter rule of the
+    env's vector and single paths and of PlantSim."""
+    return (delay_steps + int(jitter.integers(0, jitter_steps + 1))) * timestep
+
+
 def mujoco_diverged(warning_counts: np.ndarray) -> bool:
     """Whether an MjData's warning counts (`data.warning.number`) show a divergence warning."""
     return any(_DIVERGENCE_COUNTS(warning_counts.tolist()))

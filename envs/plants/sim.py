@@ -12,7 +12,7 @@ from ..friction import joint_friction_torque
 from ..sampler import JITTER, SENSOR_NOISE, stream
 from ..sensors import SensorArrays
 from . import plant_spec
-from .backend import SingleBackend, mujoco_diverged
+from .backend import SingleBackend, mujoco_diverged, period_delay
 from .mjcf import to_mjcf
 from .params import EpisodeParams, ModelIndex
 from .spec import PlantSpec
@@ -83,9 +83,8 @@ class PlantSim:
             raise ValueError(f"command must be finite, got {u!r}")
         jmax = self.params.jitter_steps(self.spec)
         if jmax:
-            j = int(self.jitter_rng.integers(0, jmax + 1))
-            delay = (self.params.delay_steps(self.spec) + j) * self.spec.timestep
-            self.backend.set_delay(ONE, np.array([delay]))
+            d = period_delay(self.jitter_rng, self.params.delay_steps(self.spec), jmax, self.spec.timestep)
+            self.backend.set_delay(ONE, np.array([d]))
         self.backend.step(ONE, np.array([u], dtype=float), None, nstep)
         return self.read()
 
