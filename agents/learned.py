@@ -270,7 +270,10 @@ class SB3Policy(LearnedNeeds, Controller):
 
     With `base` it is a residual: u = clip(u_base + α·π(obs, u_base), -1, 1), and it brings the base's
     hardware (plant_overrides). `normalizer` is a frozen VecNormalize (its observation statistics are
-    applied, never updated). A recurrent policy (RecurrentPPO) keeps its state over the episode.
+    applied, never updated). A recurrent policy (RecurrentPPO) keeps its state over the episode. The
+    network's weights are read at the first action (RowwiseActor): wrap a model that is no longer being
+    trained (a loaded or saved one, as the registry and validation do), or build a new SB3Policy after
+    training it further.
     """
 
     name: ClassVar[str] = "SB3"
