@@ -245,6 +245,28 @@ class LearnedNeeds:
         return self.inputs.observation_overrides()
 
 
+def preview_fill(observes: int, inputs: PolicyInputs, plants: tuple[str, ...], scenario: Scenario) -> int:
+    """Reference-preview samples to fill in for a model of `observes` inputs, trained on `plants`, on this
+    scenario: on a regulation scenario (a constant reference, Scenario.task) without a preview, a model
+    trained on the scenario's plant with a P-step preview is given r(t_{k+1}) ... r(t_{k+P}) = r(t_k), its
+    observation's reference repeated P times (what the env itself shows with a preview, bit for bit:
+    tested), so one model can serve a plant's regulation and tracking scenarios. Within a plant the
+    layouts differ by the preview alone (the history and privileged blocks are the model's inputs), so
+    the missing inputs are the preview; a model of unknown or other plants gets nothing filled (0)."""
+    if scenario.spec.name not in plants or scenario.task != "regulation" or scenario.preview_steps:
+        return 0
+    return max(observes - inputs.size(scenario), 0)
+
+
+def with_preview(obs: np.ndarray, reference_end: int, fill: int) -> np.ndarray:
+    """Observation rows (n, d) with the reference entry (the column before `reference_end`) repeated
+    `fill` times after it, where a preview block stands (preview_fill)."""
+    if not fill:
+        return obs
+    head, tail = obs[:, :reference_end], obs[:, reference_end:]
+    return np.concatenate([head, np.repeat(head[:, -1:], fill, axis=1), tail], axis=1)
+
+
 def policy_why_not(
     observes: tuple[int, ...],
     inputs: PolicyInputs,
@@ -253,15 +275,15 @@ def policy_why_not(
     scenario: Scenario,
 ) -> str | None:
     """Why a policy that observes `observes` (its input shape) cannot run on the scenario, or None: its
-    base controller's reason, another input shape, another plant. Decided from the saved model or from
-    its manifest alone (registry.why_not), the same way."""
+    base controller's reason, another plant, another input shape (after any preview_fill). Decided from
+    the saved model or from its manifest alone (registry.why_not), the same way."""
     if base is not None and (reason := base.why_not(scenario)) is not None:
         return f"base controller {base.name}: {reason}"
-    got = (inputs.size(scenario),)
-    if got != tuple(observes):
-        return f"the model observes shape {tuple(observes)}, the scenario gives {got}"
     if plants and scenario.spec.name not in plants:
         return f"trained for plants {list(plants)}, the scenario's plant is {scenario.spec.name}"
+    got = (inputs.size(scenario) + preview_fill(observes[0], inputs, plants, scenario),)
+    if got != tuple(observes):
+        return f"the model observes shape {tuple(observes)}, the scenario gives {got}"
     return None
 
 
@@ -302,6 +324,7 @@ class SB3Policy(LearnedNeeds, Controller):
         self.hashes: dict[str, str] = {}
         self._actor: Callable[[Any], Any] | None = None  # deterministic_actor(policy), built on first use
         self._rowwise: RowwiseActor | bool | None = None  # RowwiseActor.of(policy) on first use; False: none
+        self._fill, self._reference_end = 0, 0  # preview samples to fill in (set per episode by reset)
         self._device: Any = None  # the policy's torch device, read with _actor
 
     @classmethod
@@ -337,6 +360,9 @@ class SB3Policy(LearnedNeeds, Controller):
         if self.base is not None:
             self.base.reset(ctx)
         self.state, self.start = None, np.ones(1, dtype=bool)
+        observes = self.model.observation_space.shape[0]
+        self._fill = preview_fill(observes, self.inputs, self.plants, ctx.scenario)
+        self._reference_end = ctx.scenario.layout.slice("reference").stop
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         ub = self.base.act(obs) if self.base is not None else None
@@ -346,7 +372,7 @@ class SB3Policy(LearnedNeeds, Controller):
         """The actions (n, 1) for observation rows (n, d) and, in residual mode, the base actions (n, 1):
         the model input, the frozen normaliser, the network and the residual, each row's action the same
         whatever the other rows hold (one network call for a RowwiseActor, one per row otherwise)."""
-        x = policy_observation(obs, base)
+        x = policy_observation(with_preview(obs, self._reference_end, self._fill), base)
         if self.normalizer is not None:
             x = self.normalizer.normalize_obs(x).astype(np.float32)
         a = self._network(x)

@@ -135,3 +135,34 @@ def test_algorithm_class_names_the_missing_rl_extra(monkeypatch):
         learned.algorithm_class("SAC")
     with pytest.raises(ValueError, match=r"needs sbx: pip install -e '\.\[sbx\]'"):
         learned.algorithm_class("sbx.SAC")
+
+
+def test_a_preview_model_on_a_regulation_scenario_is_given_its_constant_reference_as_the_preview(tmp_path):
+    """A model trained with a 5-step reference preview (the committed M220 generalist, on m220_random)
+    runs on m220_regulation, which has none: the reference is constant there, so the learned controller
+    repeats the observation's reference entry where the preview stands, and every episode is bit for bit
+    the one on the same scenario with the env's own 5-step preview; the residual acts (not PID's rows)."""
+    import math
+
+    from frictiongym.agents.evaluate import run_episodes
+    from frictiongym.envs.scenario import load_scenario
+    from frictiongym.envs.suites import Episode
+
+    own = tmp_path / "m220_regulation_preview.yaml"
+    own.write_text("extends: m220_regulation\nreference: {type: constant, value: 0.0, preview_steps: 5}\n")
+    models, name = ("agents/models/generalist",), "GenSAC-m220_random-s0"
+    sc = load_scenario("m220_regulation")
+    assert sc.preview_steps == 0 and load_scenario(own).preview_steps == 5
+    assert registry.why_not(name, models)(sc) is None and registry.make(name, models).why_not(sc) is None
+    filled = run_episodes(
+        registry.make(name, models), [Episode(sc.name, s, True) for s in (500000, 500001)], keep_log=True
+    )
+    shown = run_episodes(
+        registry.make(name, models), [Episode(str(own), s, True) for s in (500000, 500001)], keep_log=True
+    )
+    pid = run_episodes(registry.make("PID"), [Episode(sc.name, s, True) for s in (500000, 500001)])
+    for a, b, p in zip(filled, shown, pid, strict=True):
+        for k, x in a.metrics.items():
+            assert x == b.metrics[k] or (math.isnan(x) and math.isnan(b.metrics[k])), k
+        assert all(np.array_equal(a.log[k], b.log[k]) for k in a.log)
+        assert a.metrics["final_error"] != p.metrics["final_error"]

@@ -289,14 +289,15 @@ def test_asymmetric_actor_ignores_the_privileged_block(tmp_path):
 
 def test_registry_skips_scenarios_with_another_observation(tmp_path):
     """A model trained on the flexible servo is planned on its scenarios and skipped on others, with the
-    reason named (plant, observation shape)."""
+    reason named (the plant, checked before the observation shape)."""
     manifest, run = train(tmp_path, "PPO")
     folder = export_model(run, tmp_path / "committed")  # what gets committed: no checkpoint, no logs
     assert sorted(p.name for p in folder.iterdir()) == sorted(EXPORTED)
     eps = [e for e in load_suite("validation") if e.scenario in (SCENARIO, "kang_regulation")][::5]
     jobs, skipped = plan([manifest["name"]], eps, (str(tmp_path / "committed"),))
     assert {j.scenario for j in jobs} == {SCENARIO}
-    assert [s[1] for s in skipped] == ["kang_regulation"] and "observes shape" in skipped[0][2]
+    assert [s[1] for s in skipped] == ["kang_regulation"]
+    assert skipped[0][2] == "trained for plants ['flexible_servo'], the scenario's plant is kang_robot"
 
 
 @pytest.mark.parametrize(
