@@ -109,10 +109,21 @@ def sha256(path: str | Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _chain(module: Any) -> list[Callable[[Any], Any]]:
-    """The forward functions of a module's leaves in call order (Sequentials flattened), called without
-    torch's per-module dispatch; a leaf's forward is the computation its call makes (no hooks are set)."""
-    return [leaf.forward for leaf in _leaves(module)]
+def _actor_leaves(policy: Any) -> tuple[Any, list[Any], bool] | None:
+    """A deterministic actor as its layers: (actor, its leaf modules in call order, whether a final tanh
+    follows them) for a SAC, TQC or CrossQ actor (squashed Gaussian, no gSDE: the mode is
+    tanh(mu(latent_pi(features)))) or a TD3 actor (mu(features)); None for any other policy (PPO, gSDE,
+    another distribution)."""
+    from stable_baselines3.common.distributions import SquashedDiagGaussianDistribution  # the rl extra
+
+    actor = getattr(policy, "actor", None)
+    if actor is None or not hasattr(actor, "mu") or getattr(actor, "use_sde", False):
+        return None
+    if not hasattr(actor, "latent_pi"):
+        return actor, _leaves(actor.mu), False
+    if not isinstance(actor.action_dist, SquashedDiagGaussianDistribution):
+        return None
+    return actor, [*_leaves(actor.latent_pi), *_leaves(actor.mu)], True
 
 
 def deterministic_actor(policy: Any) -> Callable[[Any], Any]:
@@ -121,17 +132,13 @@ def deterministic_actor(policy: Any) -> Callable[[Any], Any]:
     (the distribution's mode), for a TD3 actor mu(features), each as the plain chain of its layers; any
     other policy (PPO, gSDE) keeps SB3's own _predict."""
     import torch  # the rl extra, as in _predict
-    from stable_baselines3.common.distributions import SquashedDiagGaussianDistribution
 
-    actor = getattr(policy, "actor", None)
-    if actor is None or not hasattr(actor, "mu") or getattr(actor, "use_sde", False):
+    found = _actor_leaves(policy)
+    if found is None:
         return lambda obs: policy._predict(obs, deterministic=True)
-    if hasattr(actor, "latent_pi"):
-        if not isinstance(actor.action_dist, SquashedDiagGaussianDistribution):
-            return lambda obs: policy._predict(obs, deterministic=True)
-        chain = [*_chain(actor.latent_pi), *_chain(actor.mu), torch.tanh]
-    else:
-        chain = _chain(actor.mu)
+    actor, leaves, squashed = found
+    # each leaf's forward is the computation its call makes (no hooks are set), without torch's dispatch
+    chain = [leaf.forward for leaf in leaves] + ([torch.tanh] if squashed else [])
 
     def act(obs: Any) -> Any:
         h = actor.extract_features(obs, actor.features_extractor)
@@ -175,11 +182,10 @@ class RowwiseActor:
     @classmethod
     def of(cls, policy: Any) -> RowwiseActor | None:
         """The actor of a feed-forward SB3 policy, or None if it has layers this class does not know."""
-        from stable_baselines3.common.distributions import SquashedDiagGaussianDistribution  # the rl extra
-
-        actor = getattr(policy, "actor", None)
-        if actor is None or not hasattr(actor, "mu") or getattr(actor, "use_sde", False):
+        found = _actor_leaves(policy)
+        if found is None:
             return None
+        actor, leaves, squashed = found
         extractor = type(actor.features_extractor).__name__
         if extractor == "SelectFeatures":  # agents/asymmetric.py: the actor's columns of the observation
             columns = tuple(int(i) for i in actor.features_extractor.indices.tolist())
@@ -187,14 +193,8 @@ class RowwiseActor:
             columns = None
         else:
             return None
-        if hasattr(actor, "latent_pi"):
-            if not isinstance(actor.action_dist, SquashedDiagGaussianDistribution):
-                return None
-            modules = [*_leaves(actor.latent_pi), *_leaves(actor.mu)]
-        else:
-            modules = _leaves(actor.mu)
         layers = []
-        for m in modules:
+        for m in leaves:
             kind = type(m).__name__
             if kind == "Linear":
                 w = m.weight.detach().cpu().numpy().astype(np.float64).T.copy()
@@ -205,7 +205,7 @@ class RowwiseActor:
                 layers.append((kind.lower(), None, None))
             else:
                 return None
-        if hasattr(actor, "latent_pi"):
+        if squashed:
             layers.append(("tanh", None, None))
         return cls(columns, tuple(layers))
 
@@ -356,9 +356,13 @@ class SB3Policy(LearnedNeeds, Controller):
         return policy_why_not(observes, self.inputs, self.plants, self.base, scenario)
 
     def reset(self, ctx: EpisodeContext) -> None:
-        self.ctx = ctx
         if self.base is not None:
             self.base.reset(ctx)
+        self.start_episode(ctx)
+
+    def start_episode(self, ctx: EpisodeContext) -> None:
+        """The policy's own episode start (its base is reset by whoever acts it: reset, PolicyLockstep)."""
+        self.ctx = ctx
         self.state, self.start = None, np.ones(1, dtype=bool)
         observes = self.model.observation_space.shape[0]
         self._fill = preview_fill(observes, self.inputs, self.plants, ctx.scenario)
@@ -455,8 +459,8 @@ class PolicyLockstep(Lockstep):
         self.bases = policy.base.lockstep(n) if policy.base is not None else None
 
     def reset(self, ctx: EpisodeContext) -> None:
-        self.policy.reset(ctx)
-        if self.bases is not None:
+        self.policy.start_episode(ctx)
+        if self.bases is not None:  # policy.base among them: reset once
             self.bases.reset(ctx)
 
     def act(self, obs: np.ndarray, rows: np.ndarray) -> np.ndarray:
