@@ -29,7 +29,7 @@ from typing import Any
 from tqdm import tqdm
 
 from frictiongym.agents.engine import init_worker, run_interruptibly
-from frictiongym.agents.training import TrainingRun, run_config_with
+from frictiongym.agents.training import NothingSelected, TrainingRun, run_config_with
 from frictiongym.envs.config import ConfigError, Node, configs_dir, load_yaml
 from frictiongym.envs.records import atomic_text, command_line, csv_text
 
@@ -60,7 +60,7 @@ def run_one(job: tuple[str, str, str, str | None, dict, int, float, str, str]) -
     try:
         run.train()
         error = ""
-    except RuntimeError as e:  # no admissible evaluation: still a measurement of speed
+    except NothingSelected as e:  # no admissible evaluation: still a measurement of speed
         error = str(e)
     h = run.history
     train_s = h[-1]["train_s"] if h else math.nan
