@@ -1,0 +1,55 @@
+"""The sim-to-real study (agents/sim2real/, scripts/sim2real.py): shifted plants one axis at a time, joint
+in- and out-of-distribution sets, friction structures, model error, its report and resume."""
+
+import csv
+
+import pytest
+
+from frictiongym.agents import sim2real
+from frictiongym.scripts.sim2real import main
+
+
+@pytest.mark.slow
+def test_sim2real_on_a_tiny_grid(tmp_path):
+    """scripts/sim2real.py: one-axis shifts (inadmissible pins left out), joint in/out-of-distribution sets,
+    the CSV, the plot and the summary; a rerun resumes from episodes.csv."""
+    args = [
+        "--scenario",
+        "kang_regulation",
+        "--models",
+        "--controllers",
+        "PD",
+        "--seeds",
+        "1",
+        "--points",
+        "2",
+    ]
+    args += ["--joint", "1", "--model-error", "1", "--workers", "1", "--out", str(tmp_path)]
+    assert main(args) == 0
+    rows = list(csv.DictReader((tmp_path / "sim2real.csv").read_text().splitlines()))
+    axes = {r["axis"] for r in rows}
+    assert {"friction_scale", "delay_s", "joint_in_distribution", "joint_out_of_distribution"} <= axes
+    assert {r["controller"] for r in rows} == {"Zero", "PD"}
+    # inertia x0.5 with Kang's σ0 breaks the LuGre numerics check (h·sqrt(σ0/J) > 0.2): left out
+    assert sorted(
+        float(r["shift"]) for r in rows if r["axis"] == "inertia_scale" and r["controller"] == "PD"
+    ) == [1.5]
+    pd = {(r["axis"], r["shift"]): float(r["mean"]) for r in rows if r["controller"] == "PD"}
+    # more friction, larger final error of PD (its stick band [θ_L, θ_H] widens, seed 001 eq. 6)
+    assert pd[("friction_scale", "1.5")] > pd[("friction_scale", "0.5")]
+    # the structural axis: every structure on the same episodes; Coulomb + viscous (static level F_c < F_s)
+    # narrows PD's stick band
+    assert {s for a, s in pd if a == "friction_model"} == set(sim2real.STRUCTURES)
+    assert pd[("friction_model", "coulomb")] < pd[("friction_model", "lugre")]
+    assert (tmp_path / "sim2real.png").stat().st_size > 0
+    md = (tmp_path / "sim2real.md").read_text()
+    assert "Where each controller keeps its lead" in md and "performance lost to model error" in md
+    assert "## Friction structures (designed and trained on lugre)" in md
+    assert (tmp_path / "sim2real_structures.png").stat().st_size > 0
+    assert "1 randomised true plants" in md
+    designs = [r["design"] for r in csv.DictReader((tmp_path / "model_error.csv").read_text().splitlines())]
+    assert sorted(designs) == ["identified", "nominal", "true"]  # PD, on one true plant
+    n = len((tmp_path / "episodes.csv").read_text().splitlines())
+    episodes, _ = sim2real.plan("kang_regulation", 1, 2, 1)
+    assert n == 1 + 2 * len(episodes)
+    assert main(args) == 0 and len((tmp_path / "episodes.csv").read_text().splitlines()) == n
