@@ -53,3 +53,17 @@ def test_sim2real_on_a_tiny_grid(tmp_path):
     episodes, _ = sim2real.plan("kang_regulation", 1, 2, 1)
     assert n == 1 + 2 * len(episodes)
     assert main(args) == 0 and len((tmp_path / "episodes.csv").read_text().splitlines()) == n
+
+
+def test_a_structure_the_scenario_cannot_be_built_with_is_left_out_and_reported():
+    """Drifting friction levels drift through bristle elements; Coulomb + viscous has none, so a drift
+    scenario's structural axis runs without it and sim2real.md says why (the study used to stop there)."""
+    from frictiongym.agents.sim2real import report
+    from frictiongym.agents.sim2real.study import runnable_structures
+
+    ok, why = runnable_structures("kang_drift", sim2real.STRUCTURES)
+    assert ok == ("lugre", "dahl", "maxwell_slip", "kang") and set(why) == {"coulomb"}
+    assert "friction_drift" in why["coulomb"]
+    assert runnable_structures("kang_random", sim2real.STRUCTURES) == (sim2real.STRUCTURES, {})
+    study = report.Study("kang_drift", "iae", "lugre", [], [], 1, 1, {}, [], why)
+    assert f"Structure coulomb left out: {why['coulomb']}." in report.markdown(study)

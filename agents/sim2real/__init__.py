@@ -24,6 +24,7 @@ from .study import (
     model_error,
     model_error_table,
     plan,
+    runnable_structures,
     summarize,
 )
 
@@ -53,6 +54,7 @@ def run(
     available = registry.available(models)
     names = controllers or list(available)
     names = [ZERO, *(n for n in names if n != ZERO)]
+    structures, left_out = runnable_structures(scenario, structures)
     episodes, rejected = plan(scenario, seeds, points, joint, structures)
     options = {
         "structures": list(structures),
@@ -69,7 +71,16 @@ def run(
     sc = load_scenario(scenario)
     ran = [n for n in names if n != ZERO and any(r["controller"] == n for r in table)]
     study = report.Study(
-        scenario, sc.main_metric, sc.spec.friction_model, table, ran, seeds, joint, rejected, skipped
+        scenario,
+        sc.main_metric,
+        sc.spec.friction_model,
+        table,
+        ran,
+        seeds,
+        joint,
+        rejected,
+        skipped,
+        left_out,
     )
     atomic_text(out / "sim2real.csv", csv_text(table))
     save_figure(report.robustness_figure(table, scenario), out, "sim2real.png", dpi=90)

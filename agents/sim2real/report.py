@@ -29,6 +29,7 @@ class Study:
     joint: int  # joint-shift draws per set
     rejected: dict[str, int]  # joint draws the plant's checks rejected, per set
     skipped: list[tuple[str, str, str]]  # (controller, scenario, reason)
+    structures_left_out: dict[str, str]  # friction structure -> why the scenario cannot be built with it
 
 
 def markdown(study: Study, model_error: str | None = None) -> str:
@@ -41,7 +42,8 @@ def markdown(study: Study, model_error: str | None = None) -> str:
         "",
         f"Main metric: {study.metric} (lower is better); score = 1 - m / m_Zero. {seeds} episodes per "
         f"shift (seeds {SEEDS}+), {joint} joint draws per set; rejected joint draws (the plant's checks): "
-        f"{rejected}. Skipped: {sorted({(n, why) for n, _, why in skipped}) or 'none'}.",
+        f"{rejected}. Skipped: {sorted({(n, why) for n, _, why in skipped}) or 'none'}."
+        + "".join(f" Structure {k} left out: {why}." for k, why in study.structures_left_out.items()),
         "",
         "## Where each controller keeps its lead, and where it breaks",
         "",

@@ -88,11 +88,26 @@ def _admissible(scenario: str, values: dict[str, float]) -> bool:
 STRUCTURES = ("lugre", "dahl", "maxwell_slip", "kang", "coulomb")  # the structural axis (friction_model)
 
 
+def runnable_structures(scenario: str, structures: tuple[str, ...]) -> tuple[tuple[str, ...], dict[str, str]]:
+    """The structures of `structures` the scenario can be built with, and why each other one cannot (a
+    drift scenario's levels drift through bristle elements, which Coulomb + viscous does not have)."""
+    ok, why = [], {}
+    for model in structures:
+        try:
+            load_scenario(scenario, {"friction_model": model})
+        except ConfigError as e:
+            why[model] = str(e)
+        else:
+            ok.append(model)
+    return tuple(ok), why
+
+
 def plan(
     scenario: str, seeds: int, points: int, joint: int, structures: tuple[str, ...] = STRUCTURES
 ) -> tuple[list[Episode], dict[str, int]]:
     """The study's episodes (nominal plant + pins; randomize off so only the pinned values move) and the
-    number of rejected joint draws per set."""
+    number of rejected joint draws per set. `structures` must be runnable on the scenario
+    (runnable_structures)."""
     if max(seeds, joint) > SET_SPAN:
         raise ValueError(f"--seeds, --joint at most {SET_SPAN} (the study's seed sets: configs/suites.yaml)")
     sc = load_scenario(scenario)
