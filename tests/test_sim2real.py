@@ -67,3 +67,21 @@ def test_a_structure_the_scenario_cannot_be_built_with_is_left_out_and_reported(
     assert runnable_structures("kang_random", sim2real.STRUCTURES) == (sim2real.STRUCTURES, {})
     study = report.Study("kang_drift", "iae", "lugre", [], [], 1, 1, {}, [], why)
     assert f"Structure coulomb left out: {why['coulomb']}." in report.markdown(study)
+
+
+def test_the_best_controller_of_a_shift_is_never_a_reference_row():
+    """Ideal and Oracle are limits, not entries: the per-axis leader is the best controller beside them, as
+    in the structural section (on the M220 the friction-free Ideal row is lowest at every shift)."""
+    from frictiongym.agents.sim2real.report import findings
+
+    def row(c, shift, mean):
+        return {"axis": "friction_scale", "controller": c, "shift": shift, "mean": mean}
+
+    table = [
+        row("Ideal", 1.0, 0.019),
+        row("Oracle", 1.0, 0.020),
+        row("PID", 1.0, 0.042),
+        row("LuGreObserver", 1.0, 0.026),
+    ]
+    (line,) = findings(table, ["Ideal", "Oracle", "PID", "LuGreObserver"])
+    assert "best by mean (the reference rows Ideal, Oracle aside) 1: LuGreObserver." in line

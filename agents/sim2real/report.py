@@ -95,7 +95,11 @@ def findings(table: list[dict[str, Any]], controllers: list[str]) -> list[str]:
         shifts = sorted({s for _, s in cells})
         leaders, lost, broken = [], [], []
         for s in shifts:
-            here = [(cells[(c, s)]["mean"], c) for c in controllers if (c, s) in cells]
+            here = [
+                (cells[(c, s)]["mean"], c)
+                for c in controllers
+                if (c, s) in cells and c not in registry.LIMITS
+            ]
             if here:
                 leaders.append(f"{_fmt_shift(axis, s)}: {min(here)[1]}")
         for c in learned:
@@ -112,7 +116,7 @@ def findings(table: list[dict[str, Any]], controllers: list[str]) -> list[str]:
             if bad:
                 broken.append(f"{c} at {', '.join(_fmt_shift(axis, s) for s in bad)}")
         lines.append(
-            f"- **{axis}**: best by mean {'; '.join(leaders)}."
+            f"- **{axis}**: best by mean (the reference rows Ideal, Oracle aside) {'; '.join(leaders)}."
             + (f" Learned behind a classical baseline: {'; '.join(lost)}." if lost else "")
             + (
                 f" Breaks (main metric > {DEGRADED}x its nominal-plant value): {'; '.join(broken)}."
@@ -296,5 +300,3 @@ def model_error_markdown(table: list[dict[str, Any]], metric: str, draws: int) -
             f"{r['ci_high']:.3g}] | {loss} |"
         )
     return "\n".join([*lines, "", "![model error](model_error.png)", ""])
-
-
