@@ -223,6 +223,11 @@ class Scenario:
         return self.spec.control_period
 
     @cached_property
+    def sensor_names(self) -> tuple[str, ...]:
+        """The plant's sensors in observation order."""
+        return tuple(x.name for x in self.spec.sensors)
+
+    @cached_property
     def layout(self) -> ObservationLayout:
         """Named slices of this scenario's observation (envs/step.py)."""
         return observation_layout(

@@ -63,12 +63,20 @@ class ObservationLayout:
         return tuple(name for name, n, _ in self.entries if n)
 
     def slice(self, name: str) -> slice:
-        start = 0
+        try:
+            return self._slices[name]
+        except KeyError:
+            blocks = [e[0] for e in self.entries]
+            raise KeyError(f"no block {name!r} in the observation; blocks: {blocks}") from None
+
+    @cached_property
+    def _slices(self) -> dict[str, slice]:
+        """Each block's place, computed once (every classical controller decodes an observation per step)."""
+        out, start = {}, 0
         for entry, n, _ in self.entries:
-            if entry == name:
-                return slice(start, start + n)
+            out[entry] = slice(start, start + n)
             start += n
-        raise KeyError(f"no block {name!r} in the observation; blocks: {[e[0] for e in self.entries]}")
+        return out
 
     def structure(self) -> dict[str, int]:
         """{block name: size}, the sizes of every block (0 for blocks this scenario leaves out)."""
