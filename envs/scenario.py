@@ -223,11 +223,6 @@ class Scenario:
         return self.spec.control_period
 
     @cached_property
-    def sensor_names(self) -> tuple[str, ...]:
-        """The plant's sensors in observation order."""
-        return tuple(x.name for x in self.spec.sensors)
-
-    @cached_property
     def layout(self) -> ObservationLayout:
         """Named slices of this scenario's observation (envs/step.py)."""
         return observation_layout(
@@ -513,7 +508,7 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
     )
     period = spec.control_period
     task = c.section("task")
-    names = [x.name for x in spec.sensors]
+    names = spec.sensor_names
     tracked = names.index(task.choice("tracked_sensor", names))
     unit_key = "action_scale_nm" if spec.command_unit == "N·m" else "action_scale_v"
     action_scale = task.number(unit_key, MIN_ACTION_SCALE_FRACTION * spec.command_limit, spec.command_limit)

@@ -87,7 +87,7 @@ def decode_observation(scenario: Scenario, obs: np.ndarray, trusted: bool = Fals
         if not np.isfinite(obs).all():
             raise ValueError(f"observation must be finite, got {obs}")
     return {
-        "sensors": dict(zip(scenario.sensor_names, obs[lay.slice("sensors")] * s, strict=True)),
+        "sensors": dict(zip(scenario.spec.sensor_names, obs[lay.slice("sensors")] * s, strict=True)),
         "reference": float(obs[lay.slice("reference")][0] * s),
         "preview": obs[lay.slice("preview")] * s,
         "previous_command": float(obs[lay.slice("previous_action")][0] * scenario.action_scale),

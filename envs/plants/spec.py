@@ -13,6 +13,7 @@ Belts (M220) are joint equality constraints; the flexible shaft is a fixed tendo
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -122,9 +123,14 @@ class PlantSpec:
     def joint_index(self, name: str) -> int:
         return [j.name for j in self.joints].index(name)
 
+    @cached_property
+    def sensor_names(self) -> tuple[str, ...]:
+        """The sensors' names in spec order (the observation's order)."""
+        return tuple(s.name for s in self.sensors)
+
     def sensor(self, name: str) -> SensorSpec:
         """The sensor called name."""
-        return self.sensors[[s.name for s in self.sensors].index(name)]
+        return self.sensors[self.sensor_names.index(name)]
 
     @property
     def drive_friction(self) -> LuGreParams | None:
