@@ -73,6 +73,14 @@ def markdown(study: Study, model_error: str | None = None) -> str:
     return "\n".join(md) + "\n"
 
 
+def _roles(controllers: list[str]) -> tuple[list[str], list[str]]:
+    """(classical, learned) among controllers: the built-in loops and the rest, the reference rows
+    (registry.LIMITS: Ideal, Oracle) in neither."""
+    classical = [c for c in controllers if c in registry.BUILTIN]
+    learned = [c for c in controllers if c not in registry.BUILTIN and c not in registry.LIMITS]
+    return classical, learned
+
+
 def findings(table: list[dict[str, Any]], controllers: list[str]) -> list[str]:
     """Markdown bullets computed from the table, per axis: the best controller at each shift, where each
     learned (non built-in) controller loses to the best classical baseline (its lead lost), and where any
@@ -80,8 +88,7 @@ def findings(table: list[dict[str, Any]], controllers: list[str]) -> list[str]:
     by: dict[str, dict[tuple[str, float], dict[str, Any]]] = defaultdict(dict)
     for r in table:
         by[r["axis"]][(r["controller"], r["shift"])] = r
-    classical = [c for c in controllers if c in registry.BUILTIN]
-    learned = [c for c in controllers if c not in registry.BUILTIN and c not in registry.LIMITS]
+    classical, learned = _roles(controllers)
     nominal = {}
     for c in controllers:
         at = [
@@ -144,8 +151,7 @@ def structure_findings(table: list[dict[str, Any]], controllers: list[str], own:
     for c in ran:
         vals = [f"{cells[(c, s)]['mean']:.4g}" if (c, s) in cells else "" for s in structures]
         lines.append(f"| {c} | " + " | ".join(vals) + " |")
-    classical = [c for c in ran if c in registry.BUILTIN]
-    learned = [c for c in ran if c not in registry.BUILTIN and c not in registry.LIMITS]
+    classical, learned = _roles(ran)
 
     def best_classical(s: str) -> float:
         return min((cells[(b, s)]["mean"] for b in classical if (b, s) in cells), default=math.nan)
