@@ -37,11 +37,17 @@ class PolicyInputs:
     privileged: the env appends ground truth (true output, friction, bristle force); only the critic reads
         it (asymmetric actor-critic, agents/training/), the actor's features drop it.
     base_action: the residual's base controller action is appended (residual mode).
+    differences: two differences of inputs are appended last (difference_indices): the tracking error
+        (y - r)/s and the reference's change over the preview (r(t_{k+P}) - r(t_k))/s. Both are small
+        differences of large inputs that a normalised input hides: on the M220 (5 ms period, 0.5 rad
+        scale) a 0.5 rad/s reference moves 0.4 % of the reference's spread per step. Appended, they get
+        their own normalisation statistics.
     """
 
     history: int = 0
     privileged: bool = False
     base_action: bool = False
+    differences: bool = False
 
     def observation_overrides(self) -> dict[str, Any]:
         """The scenario `observation` settings the env must use for this model."""
@@ -50,7 +56,7 @@ class PolicyInputs:
     def size(self, scenario: Scenario) -> int:
         """Length of the model's input on this scenario."""
         sc = dataclasses.replace(scenario, history=self.history, privileged=self.privileged)
-        return sc.layout.size + int(self.base_action)
+        return sc.layout.size + int(self.base_action) + DIFFERENCES * int(self.differences)
 
     def actor_indices(self, scenario: Scenario) -> list[int]:
         """Indices of the model input the actor may read: all but the privileged block."""
@@ -59,13 +65,35 @@ class PolicyInputs:
         return [i for i in range(self.size(scenario)) if i not in hidden]
 
 
-def policy_observation(obs: np.ndarray, base_action: np.ndarray | None) -> np.ndarray:
-    """The model's input: the env's observation, then the base action in residual mode (float32). One
-    observation (d,) with one base action, or rows (n, d) with one base action per row."""
-    if base_action is None:
-        return obs
-    base = np.asarray(base_action, dtype=np.float32).reshape(*obs.shape[:-1], 1)
-    return np.concatenate([obs, base], axis=-1)
+DIFFERENCES = 2  # inputs PolicyInputs.differences appends: tracking error, reference change over the preview
+
+
+def difference_indices(scenario: Scenario, fill: int = 0) -> tuple[int, int, int]:
+    """(tracked reading, reference, last preview sample) indices of the observation (with `fill` preview
+    samples filled in, preview_fill), for PolicyInputs.differences: the model's inputs y/s - r/s and
+    r(t_{k+P})/s - r(t_k)/s. Without a preview the last sample is the reference itself (a change of 0)."""
+    lay = scenario.layout
+    reference = lay.slice("reference").start
+    return (
+        lay.slice("sensors").start + scenario.tracked_sensor,
+        reference,
+        reference + (scenario.preview_steps or fill),
+    )
+
+
+def policy_observation(
+    obs: np.ndarray, base_action: np.ndarray | None, differences: tuple[int, int, int] | None = None
+) -> np.ndarray:
+    """The model's input (float32): the env's observation, then the base action in residual mode, then
+    with `differences` (difference_indices) the tracking error and the reference's change over the
+    preview. One observation (d,) with one base action, or rows (n, d) with one base action per row."""
+    parts = [obs]
+    if base_action is not None:
+        parts.append(np.asarray(base_action, dtype=np.float32).reshape(*obs.shape[:-1], 1))
+    if differences is not None:
+        tracked, reference, last = differences
+        parts.append(obs[..., [tracked, last]] - obs[..., [reference, reference]])
+    return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=-1)
 
 
 def residual_action(base_action: np.ndarray, residual: np.ndarray, alpha: float) -> np.ndarray:
@@ -325,6 +353,7 @@ class SB3Policy(LearnedNeeds, Controller):
         self._actor: Callable[[Any], Any] | None = None  # deterministic_actor(policy), built on first use
         self._rowwise: RowwiseActor | bool | None = None  # RowwiseActor.of(policy) on first use; False: none
         self._fill, self._reference_end = 0, 0  # preview samples to fill in (set per episode by reset)
+        self._differences: tuple[int, int, int] | None = None  # difference_indices, set per episode
         self._device: Any = None  # the policy's torch device, read with _actor
 
     @classmethod
@@ -367,6 +396,8 @@ class SB3Policy(LearnedNeeds, Controller):
         observes = self.model.observation_space.shape[0]
         self._fill = preview_fill(observes, self.inputs, self.plants, ctx.scenario)
         self._reference_end = ctx.scenario.layout.slice("reference").stop
+        if self.inputs.differences:
+            self._differences = difference_indices(ctx.scenario, self._fill)
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         ub = self.base.act(obs) if self.base is not None else None
@@ -376,7 +407,7 @@ class SB3Policy(LearnedNeeds, Controller):
         """The actions (n, 1) for observation rows (n, d) and, in residual mode, the base actions (n, 1):
         the model input, the frozen normaliser, the network and the residual, each row's action the same
         whatever the other rows hold (one network call for a RowwiseActor, one per row otherwise)."""
-        x = policy_observation(with_preview(obs, self._reference_end, self._fill), base)
+        x = policy_observation(with_preview(obs, self._reference_end, self._fill), base, self._differences)
         if self.normalizer is not None:
             x = self.normalizer.normalize_obs(x).astype(np.float32)
         a = self._network(x)

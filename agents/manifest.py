@@ -59,6 +59,8 @@ class Manifest:
         out = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
         out["plants"] = list(self.plants)
         out["inputs"] = dataclasses.asdict(self.inputs) if self.inputs is not None else None
+        if out["inputs"] is not None and not out["inputs"]["differences"]:
+            del out["inputs"]["differences"]  # written when on: older manifests read back as written
         return out
 
     def write(self, folder: Path) -> None:
@@ -94,6 +96,7 @@ class Manifest:
                 i.integer("history", 0, default=0),
                 i.boolean("privileged", default=False),
                 i.boolean("base_action", default=kw.get("base_controller") is not None),
+                i.boolean("differences", default=False),
             )
         for key in ("seed", "steps", "selected_step", "torch_threads"):
             if m.get(key) is not None:

@@ -22,6 +22,40 @@ def test_policy_inputs_sizes():
     sc = EnvCache().scenario(validation_episodes(SCENARIO)[0])
     assert PolicyInputs().size(sc) == sc.layout.size
     assert PolicyInputs(2, False, True).size(sc) == sc.layout.size + 2 * (len(sc.spec.sensors) + 1) + 1
+    assert PolicyInputs(0, False, True, differences=True).size(sc) == sc.layout.size + 1 + 2
+
+
+def test_differences_are_the_tracking_error_and_the_reference_change_over_the_preview():
+    """PolicyInputs.differences appends (y - r)/s of the tracked sensor and (r(t_{k+P}) - r(t_k))/s, read
+    from the observation's own entries (float32 differences of the scaled readings); on a regulation
+    scenario with its preview filled in (preview_fill) the reference does not change: exactly 0."""
+    from frictiongym.agents.learned import difference_indices, policy_observation, with_preview
+    from frictiongym.envs.servo_env import ServoEnv, decode_observation
+
+    env = ServoEnv("kang_random")
+    sc = env.unwrapped.scenario
+    obs, _ = env.reset(seed=500000)
+    for _ in range(120):  # into the episode's first segments: a moving reference
+        obs, *_ = env.step(np.array([0.3], dtype=np.float32))
+    x = policy_observation(obs, np.array([0.1]), difference_indices(sc))
+    assert x.shape == (sc.layout.size + 1 + 2,) and x.dtype == np.float32
+    d = decode_observation(sc, obs)
+    s = sc.output_scale
+    y = d["sensors"][sc.spec.sensor_names[sc.tracked_sensor]]
+    expected = [(y - d["reference"]) / s, (d["preview"][-1] - d["reference"]) / s]
+    np.testing.assert_allclose(x[-2:], expected, atol=1e-6)
+    assert x[-1] != 0.0 and x[-3] == np.float32(0.1)
+
+    reg = EnvCache().scenario(validation_episodes("kang_regulation")[0])
+    assert reg.preview_steps == 0
+    env = ServoEnv("kang_regulation")
+    obs, _ = env.reset(seed=500000)
+    filled = with_preview(obs[None], reg.layout.slice("reference").stop, 5)
+    rows = policy_observation(filled, None, difference_indices(reg, 5))
+    assert rows.shape == (1, reg.layout.size + 5 + 2) and rows[0, -1] == 0.0
+    tracked = reg.layout.slice("sensors").start + reg.tracked_sensor
+    reference = reg.layout.slice("reference").start
+    assert rows[0, -2] == filled[0, tracked] - filled[0, reference]
 
 
 @pytest.mark.parametrize(
@@ -166,3 +200,63 @@ def test_a_preview_model_on_a_regulation_scenario_is_given_its_constant_referenc
             assert x == b.metrics[k] or (math.isnan(x) and math.isnan(b.metrics[k])), k
         assert all(np.array_equal(a.log[k], b.log[k]) for k in a.log)
         assert a.metrics["final_error"] != p.metrics["final_error"]
+
+
+def test_a_differences_model_sees_in_evaluation_what_its_training_env_gave(tmp_path):
+    """A residual SAC with the differences inputs, built on kang_random (its mean layer perturbed so the
+    residual acts): on kang_regulation, where its preview is filled in, its episodes equal bit for bit
+    those on the same scenario with the env's own 5-step preview, and differ from PID's; every network
+    input it built ends with the two differences at the indices the training env uses."""
+    import math
+
+    import torch
+    import yaml
+    from conftest import HYPER
+
+    from frictiongym.agents.evaluate import run_episodes
+    from frictiongym.envs.suites import Episode
+
+    cfg_path = tmp_path / "diff.yaml"
+    entry = {"residual": {"base": "PID", "alpha": 0.2}, "observation": {"differences": True}}
+    cfg_path.write_text(
+        yaml.safe_dump(
+            {
+                "name": "Diff",
+                "algorithm": "SAC",
+                "defaults": {"hyperparams": HYPER["SAC"]},
+                "scenarios": {"kang_random": entry},
+            }
+        )
+    )
+    (cfg,) = load_config(cfg_path)
+    venv = make_training_env(cfg, 0)
+    model = build_model(cfg, venv, 0, None)
+    with torch.no_grad():
+        for p in model.actor.mu.parameters():
+            p.add_(0.2 * torch.randn(p.shape, generator=torch.Generator().manual_seed(0)))
+    own = tmp_path / "kang_regulation_preview.yaml"
+    own.write_text("extends: kang_regulation\nreference: {type: constant, value: 0.0, preview_steps: 5}\n")
+
+    def policy() -> SB3Policy:
+        return SB3Policy(
+            model, ("kang_robot",), inputs=cfg.inputs, base=registry.make("PID"), alpha=cfg.alpha
+        )
+
+    seen: list[np.ndarray] = []
+    shown_policy = policy()
+    network = shown_policy._network
+    shown_policy._network = lambda x: (seen.append(x.copy()), network(x))[1]
+    seeds = (500000, 500001)
+    filled = run_episodes(policy(), [Episode("kang_regulation", s, True) for s in seeds], keep_log=True)
+    shown = run_episodes(shown_policy, [Episode(str(own), s, True) for s in seeds], keep_log=True)
+    pid = run_episodes(registry.make("PID"), [Episode("kang_regulation", s, True) for s in seeds])
+    for a, b, p in zip(filled, shown, pid, strict=True):
+        for k, x in a.metrics.items():
+            assert x == b.metrics[k] or (math.isnan(x) and math.isnan(b.metrics[k])), k
+        assert all(np.array_equal(a.log[k], b.log[k]) for k in a.log)
+        assert a.metrics["final_error"] != p.metrics["final_error"]
+    tracked, reference, last = venv.differences
+    x = np.concatenate(seen)
+    assert x.shape[1] == venv.observation_space.shape[0] and len(x) > 100
+    assert np.array_equal(x[:, -2], x[:, tracked] - x[:, reference]) and x[:, -2].any()
+    assert np.array_equal(x[:, -1], x[:, last] - x[:, reference])

@@ -31,6 +31,19 @@ def test_a_hand_made_manifest_needs_a_name_and_an_algorithm_only(tmp_path):
     assert Manifest.read(tmp_path).policy_inputs == PolicyInputs(base_action=True)  # a residual sees its base
 
 
+def test_the_differences_input_is_written_when_on_and_read_back(tmp_path):
+    """`inputs.differences` (a later input) appears in a manifest only when on, and reads back as written;
+    older manifests without it read as off."""
+    (tmp_path / "model.zip").write_bytes(b"")
+    on = Manifest("R", "SAC", base_controller="PID", inputs=PolicyInputs(base_action=True, differences=True))
+    on.write(tmp_path)
+    assert "differences: true" in (tmp_path / MANIFEST).read_text()
+    assert Manifest.read(tmp_path).policy_inputs == PolicyInputs(base_action=True, differences=True)
+    Manifest("R", "SAC", base_controller="PID", inputs=PolicyInputs(base_action=True)).write(tmp_path)
+    assert "differences" not in (tmp_path / MANIFEST).read_text()
+    assert Manifest.read(tmp_path).policy_inputs == PolicyInputs(base_action=True)
+
+
 @pytest.mark.parametrize(
     ("text", "field"),
     [

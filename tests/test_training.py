@@ -212,20 +212,25 @@ def _single_env_form(cfg):
     kw = training_env_kwargs(cfg)
 
     def one(i):
-        env = ResidualEnv(ServoEnv(cfg.scenario, **kw), registry.make(cfg.base), cfg.alpha)
+        base = registry.make(cfg.base)
+        env = ResidualEnv(ServoEnv(cfg.scenario, **kw), base, cfg.alpha, cfg.inputs.differences)
         return type("Scheduled", (_Scheduled, gym.Wrapper), {})(env, i, cfg.n_envs)
 
     return DummyVecEnv([lambda i=i: one(i) for i in range(cfg.n_envs)])
 
 
-def test_batched_training_env_equals_sb3_dummy_vec_env_of_single_envs(tmp_path):
+@pytest.mark.parametrize("differences", [False, True])
+def test_batched_training_env_equals_sb3_dummy_vec_env_of_single_envs(tmp_path, differences):
     """The batched training env gives DummyVecEnv's observations, rewards (float32), dones and terminal
     observations over single residual envs, bit for bit, across episode ends, for float32 actions and
-    the float64 ones exploration noise makes; and SAC trained on either learns the same network."""
+    the float64 ones exploration noise makes; and SAC trained on either learns the same network. With
+    the differences inputs too (two more columns, the same in both forms)."""
     import torch
 
-    (cfg,) = load_config(write_config(tmp_path, "SAC", n_envs=3))
+    (cfg,) = load_config(write_config(tmp_path, "SAC", n_envs=3, observation={"differences": differences}))
+    assert cfg.inputs.differences == differences
     ref, new = _single_env_form(cfg), make_training_env(cfg, 0)
+    assert new.observation_space.shape[0] == new.core.obs_dim + 1 + 2 * differences
     assert np.array_equal(ref.reset(), new.reset())
     rng = np.random.default_rng(0)
     ends = 0

@@ -159,7 +159,12 @@ def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) 
     base = res["base"]
     if base is not None and (base not in BUILTIN or base == ZERO):
         raise res.error("base", f"unknown base controller {base!r}; allowed: {sorted(set(BUILTIN) - {ZERO})}")
-    inputs = PolicyInputs(o.integer("history", 0, 64), o.boolean("privileged_critic"), base is not None)
+    inputs = PolicyInputs(
+        o.integer("history", 0, 64),
+        o.boolean("privileged_critic"),
+        base is not None,
+        o.boolean("differences"),
+    )
     hp = c.section("hyperparams")
     hyper = {k: hp[k] for k in list(hp.keys()) if hp[k] is not None}  # null: the algorithm's default
     _check_hyperparams(algo, hyper, hp)

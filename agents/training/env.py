@@ -17,8 +17,10 @@ from frictiongym.envs.scenario import load_scenario
 from ..base import Controller, EpisodeContext
 from ..evaluate import controller_overrides
 from ..learned import (
+    DIFFERENCES,
     LearnedNeeds,
     PolicyInputs,
+    difference_indices,
     policy_observation,
     residual_action,
 )
@@ -35,10 +37,11 @@ class ResidualEnv(gym.Wrapper):
     without a base, the env as it is: the single-env form of a training env (agents/training/vec_env.py),
     for rl-zoo (agents/zoo.py)."""
 
-    def __init__(self, env: gym.Env, base: Controller | None, alpha: float):
+    def __init__(self, env: gym.Env, base: Controller | None, alpha: float, differences: bool = False):
         super().__init__(env)
         self.base, self.alpha = base, alpha
-        n = env.observation_space.shape[0] + int(base is not None)
+        self.differences = difference_indices(env.unwrapped.scenario) if differences else None
+        n = env.observation_space.shape[0] + int(base is not None) + DIFFERENCES * int(differences)
         self.observation_space = spaces.Box(-np.inf, np.inf, (n,), np.float32)
         self.knowledge = knowledge_defaults()
 
@@ -49,12 +52,12 @@ class ResidualEnv(gym.Wrapper):
     def _observe(self, obs: np.ndarray, reset: bool = False) -> np.ndarray:
         if self.base is None:
             self.u_base = None
-            return obs
+            return policy_observation(obs, None, self.differences)
         if reset:
             sc = self.env.unwrapped.scenario
             self.base.reset(EpisodeContext(sc, sc.spec, self.knowledge))
         self.u_base = self.base.act(obs)
-        return policy_observation(obs, self.u_base)
+        return policy_observation(obs, self.u_base, self.differences)
 
     def step(self, action: np.ndarray):
         u = residual_action(self.u_base, action, self.alpha) if self.base is not None else action
@@ -83,7 +86,16 @@ def make_training_env(cfg: RunConfig, seed: int, nthread: int = 1) -> TrainingVe
 
     bases = (lambda: make(cfg.base)) if cfg.base is not None else None
     kw = training_env_kwargs(cfg)
-    return TrainingVecEnv(cfg.scenario, cfg.n_envs, seed, bases=bases, alpha=cfg.alpha, nthread=nthread, **kw)
+    return TrainingVecEnv(
+        cfg.scenario,
+        cfg.n_envs,
+        seed,
+        bases=bases,
+        alpha=cfg.alpha,
+        nthread=nthread,
+        differences=cfg.inputs.differences,
+        **kw,
+    )
 
 
 class SB3PolicyShape(LearnedNeeds, Controller):

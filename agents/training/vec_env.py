@@ -26,7 +26,7 @@ from frictiongym.envs.suites import seed_range
 from frictiongym.envs.vector import ServoVectorEnv
 
 from ..base import Controller, EpisodeContext
-from ..learned import policy_observation, residual_action
+from ..learned import DIFFERENCES, difference_indices, policy_observation, residual_action
 from ..settings import knowledge_defaults
 
 TRAINING_SEEDS, _LAST = seed_range("training")  # configs/suites.yaml's range: no suite or study uses it
@@ -76,6 +76,7 @@ class TrainingVecEnv(_vec_env_base()):
         randomize: bool,
         overrides: dict | None,
         nthread: int = 1,
+        differences: bool = False,
     ):
         if not 0 <= run_seed < RUN_SEEDS:
             raise ValueError(f"run seed {run_seed} outside 0-{RUN_SEEDS - 1} (the training seed range)")
@@ -88,7 +89,8 @@ class TrainingVecEnv(_vec_env_base()):
         self.seeds = np.zeros(n_envs, dtype=np.int64)  # each env's current episode seed
         self.slots = [_Slot(self, i) for i in range(n_envs)]
         self.u_base: list[np.ndarray] = [np.zeros(1)] * n_envs  # each env's base action now, as it gave it
-        size = self.core.obs_dim + int(self.bases is not None)
+        self.differences = difference_indices(self.scenario) if differences else None
+        size = self.core.obs_dim + int(self.bases is not None) + DIFFERENCES * int(differences)
         space = spaces.Box(-np.inf, np.inf, (size,), np.float32)
         super().__init__(n_envs, space, self.venv.single_action_space)
         self._actions = np.zeros((n_envs, 1), dtype=np.float32)
@@ -109,11 +111,11 @@ class TrainingVecEnv(_vec_env_base()):
     def _observe(self, ids: Sequence[int] | np.ndarray, obs: np.ndarray) -> np.ndarray:
         """The policy observations of envs ids: the env's, then (residual) the base's action on it."""
         if self.bases is None:
-            return obs
+            return policy_observation(obs, None, self.differences)
         out = np.empty((len(ids), self.observation_space.shape[0]), dtype=np.float32)
         for row, i in enumerate(ids):
             self.u_base[i] = self.bases[i].act(obs[row])
-            out[row] = policy_observation(obs[row], self.u_base[i])
+            out[row] = policy_observation(obs[row], self.u_base[i], self.differences)
         return out
 
     # ------------------------------------------------------------------ VecEnv
