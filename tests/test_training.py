@@ -73,6 +73,30 @@ def test_every_algorithm_trains_and_its_saved_model_acts_identically(tmp_path, a
 
 
 @pytest.mark.slow
+def test_selection_on_more_scenarios_keeps_the_model_that_beats_the_most(tmp_path):
+    """With validation.scenarios, every evaluation is scored on each scenario's validation episodes
+    against that scenario's best classical baseline; the kept model is the row with the most scenarios
+    beaten, then the lowest geometric mean of metric / baseline, and the manifest says so. The kept
+    model, loaded through the registry, gives the recorded main metric on the scenario's episodes."""
+    manifest, folder = train(tmp_path, "SAC", validation={"scenarios": ["flexible_speed_reversal"]})
+    rows = list(csv.DictReader((folder / "validation.csv").open()))
+    assert len(rows) >= 2 and all(0 <= float(r["won"]) <= 2 and float(r["ratio"]) > 0 for r in rows)
+    key = [(float(r["won"]), -float(r["ratio"])) for r in rows]
+    best = rows[key.index(max(key))]  # the first of equals: a later row must be strictly better
+    sel = manifest["validation"]["selection"]
+    assert manifest["selected_step"] == int(best["step"])
+    assert sel["scenarios"] == [SCENARIO, "flexible_speed_reversal"]
+    assert (sel["won"], sel["ratio"]) == (int(float(best["won"])), float(best["ratio"]))
+    assert set(sel["best_classical"]) == set(sel["scenarios"])
+    c = registry.make(manifest["name"], (str(folder),))
+    main = [
+        run_episode(c, e).metrics[manifest["validation"]["main_metric"]]
+        for e in validation_episodes(SCENARIO)[:2]
+    ]
+    assert np.mean(main) == manifest["validation"]["value"]
+
+
+@pytest.mark.slow
 def test_a_run_that_selects_nothing_is_reported_and_the_other_runs_go_on(tmp_path):
     """A run none of whose validation evaluations meets the effort rule (here: at most 1e-9 x the
     baseline's effort) selects no model; train_many returns its NothingSelected, naming the rule and the
@@ -318,11 +342,16 @@ def test_registry_skips_scenarios_with_another_observation(tmp_path):
             {"update_to_data": 0.5, "hyperparams": {"learning_starts": 0, "gradient_steps": 2}},
             "gradient_steps",
         ),
+        ({"validation": {"scenarios": ["flexible_chirp"]}}, r"validation\.scenarios.*held-out"),
+        ({"validation": {"scenarios": ["kang_ramp"]}}, r"validation\.scenarios.*kang_robot"),
+        ({"validation": {"scenarios": ["flexible_nope"]}}, r"validation\.scenarios"),
+        ({"validation": {"scenarios": "flexible_drift"}}, r"validation\.scenarios.*list"),
     ],
 )
 def test_config_errors_name_the_field(tmp_path, entry, field):
-    """Typos, unknown controllers, out-of-range randomisation and a random warm-up at full authority over a
-    residual are errors naming the file and the field."""
+    """Typos, unknown controllers, out-of-range randomisation, a random warm-up at full authority over a
+    residual and selection scenarios that are held out, of another plant or unknown are errors naming the
+    file and the field."""
     path = write_config(tmp_path, "SAC", **entry)
     with pytest.raises(ConfigError, match=field) as e:
         load_config(path)

@@ -65,11 +65,15 @@ class RunConfig:
     max_effort_ratio: float  # selection: effort_rms <= ratio · best classical baseline's (validation)
     max_wall_time_s: float  # the run stops (and says so in its manifest) after this wall time
     hyperparams: dict[str, Any] = field(default_factory=dict)  # the algorithm's keyword arguments
+    # more scenarios of the plant whose validation episodes select the model beside the scenario's own
+    # (validation.scenarios): the most scenarios beaten, then the geometric mean of metric / baseline
+    eval_scenarios: tuple[str, ...] = ()
     source: str = ""  # the config file
 
     def as_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
         d["randomization"] = {k: list(v) for k, v in self.randomization.items()}
+        d["eval_scenarios"] = list(self.eval_scenarios)
         return d
 
 
@@ -217,6 +221,7 @@ def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) 
         max_effort_ratio=v.positive("max_effort_ratio"),
         max_wall_time_s=c.positive("max_wall_time_s"),
         hyperparams=hyper,
+        eval_scenarios=_eval_scenarios(v, scenario),
         source=source,
     )
     if base is None:
@@ -224,6 +229,25 @@ def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) 
     for node in (r, w, o, res, hp, n, v, c):
         node.done()
     return cfg
+
+
+def _eval_scenarios(v: Node, scenario: str) -> tuple[str, ...]:
+    """validation.scenarios: more scenarios of the training scenario's plant to select on (their
+    validation-suite episodes; never a held-out scenario), the training scenario itself left out."""
+    names = v.get("scenarios") or []
+    if not isinstance(names, list) or not all(isinstance(x, str) for x in names):
+        raise v.error("scenarios", f"expected a list of scenario names, got {names!r}")
+    plant = load_scenario(scenario).spec.name
+    for name in names:
+        try:
+            sc = load_scenario(name)
+        except (ConfigError, FileNotFoundError) as e:
+            raise v.error("scenarios", str(e)) from None
+        if sc.held_out:
+            raise v.error("scenarios", f"{name} is held-out (generalisation): never selected on")
+        if sc.spec.name != plant:
+            raise v.error("scenarios", f"{name} is a {sc.spec.name} scenario; {scenario} is {plant}'s")
+    return tuple(dict.fromkeys(n for n in names if n != scenario))
 
 
 def sb3_schedule(update_to_data: float, n_envs: int) -> tuple[int, int]:

@@ -75,8 +75,14 @@ class TrainingRun:
         self.pending: list[PendingEvaluation] = []
         self.name = f"{cfg.name}-{cfg.scenario}-s{seed}"  # unique across a config's scenarios
         self.episodes = validation_episodes(cfg.scenario)[: cfg.eval_episodes]
-        if not self.episodes:
-            raise ConfigError("scenario", f"{cfg.scenario} is not in the {VALIDATION_SUITE} suite")
+        # the selection episodes by scenario: the scenario's own, then validation.scenarios'
+        self.groups = {
+            sc: validation_episodes(sc)[: cfg.eval_episodes] for sc in (cfg.scenario, *cfg.eval_scenarios)
+        }
+        for sc, episodes in self.groups.items():
+            if not episodes:
+                field = "scenario" if sc == cfg.scenario else "validation.scenarios"
+                raise ConfigError(field, f"{sc} is not in the {VALIDATION_SUITE} suite", cfg.source)
         self.main = load_scenario(cfg.scenario).main_metric
         self.envs = EnvCache()
         self.history: list[dict[str, float]] = []
@@ -102,7 +108,7 @@ class TrainingRun:
         here); collect() records it. Returns the snapshot (the checkpoint's model)."""
         t0 = time.monotonic()
         snap = Snapshot.of(model)
-        job = (self.cfg, self.name, snap, self.episodes)
+        job = (self.cfg, self.name, snap, self.groups)
         if self.parallel_validation:
             if self.pool is None:
                 self.pool = ProcessPoolExecutor(
@@ -129,11 +135,16 @@ class TrainingRun:
             except BrokenProcessPool:  # the worker died (e.g. killed): validate here from now on
                 print(f"{self.name}: the validation worker stopped; validating in turn", file=sys.stderr)
                 self.parallel_validation, self.pool = False, None
-                m = evaluate_snapshot(self.cfg, self.name, p.snapshot, self.episodes)
+                m = evaluate_snapshot(self.cfg, self.name, p.snapshot, self.groups)
             self.eval_s += time.monotonic() - t0
             self._record(p.meta, p.snapshot, m)
 
-    def _record(self, meta: dict[str, Any], snap: Snapshot, m: dict[str, float]) -> None:
+    def _record(self, meta: dict[str, Any], snap: Snapshot, by_scenario: dict[str, dict[str, float]]) -> None:
+        """One evaluation's row; its model becomes the selected one if it is the best so far: the lowest
+        main metric among the admissible rows or, with validation.scenarios, the most scenarios beaten
+        (mean main metric below the best classical baseline's at effort_rms at most max_effort_ratio x
+        its), then the lowest geometric mean of main metric / baseline over the scenarios."""
+        m = by_scenario[self.cfg.scenario]
         zero = self.zero[self.main]
         row = {
             **meta,
@@ -144,16 +155,36 @@ class TrainingRun:
             "iae": m["iae"],
         }
         row["admissible"] = float(row["effort_rms"] <= self.cfg.max_effort_ratio * self.effort_ref)
+        if self.cfg.eval_scenarios:
+            row |= self._across(by_scenario)
         self.history.append(row)
         if self.logger is not None:
             for k in ("main", "score", "effort_rms"):
                 self.logger.record(f"validation/{k}", row[k])
-        if row["admissible"] and (self.best is None or row["main"] < self.best["main"]):
+        if self.cfg.eval_scenarios:
+            better = self.best is None or (row["won"], -row["ratio"]) > (
+                self.best["won"],
+                -self.best["ratio"],
+            )
+        else:
+            better = row["admissible"] and (self.best is None or row["main"] < self.best["main"])
+        if better:
             self.best = row
             snap.write(self.out)
         atomic_text(self.out / VALIDATION_CSV, csv_text(self.history))
         if self.reporter is not None:
             self.reporter(row)
+
+    def _across(self, by_scenario: dict[str, dict[str, float]]) -> dict[str, float]:
+        """Scenarios beaten (the leaderboard's rule on means: main metric below the best classical
+        baseline's, effort_rms at most max_effort_ratio x its) and the geometric mean of main metric /
+        baseline's over the selection scenarios."""
+        won, logs = 0, []
+        for sc, m in by_scenario.items():
+            b, main = self.baselines[sc], load_scenario(sc).main_metric
+            won += m[main] < b.main and m["effort_rms"] <= self.cfg.max_effort_ratio * b.effort_rms
+            logs.append(math.log(max(m[main], 1e-300) / max(b.main, 1e-300)))
+        return {"won": float(won), "ratio": math.exp(sum(logs) / len(logs))}
 
     # ----------------------------------------------------------------------------- checkpoints
     def checkpoint(self, model: Any, snap: Snapshot) -> None:
@@ -196,6 +227,10 @@ class TrainingRun:
         out.mkdir(parents=True, exist_ok=True)
         classical = classical_on(self.episodes, self.envs)
         self.baseline, self.zero = best_classical(cfg.scenario, classical), classical[ZERO]
+        self.baselines = {
+            sc: self.baseline if sc == cfg.scenario else best_classical(sc, classical_on(episodes, self.envs))
+            for sc, episodes in self.groups.items()
+        }
         # admissible effort: relative to the best baseline, and to the base controller in residual mode
         self.effort_ref = min(
             self.baseline.effort_rms, classical[cfg.base]["effort_rms"] if cfg.base else math.inf
@@ -219,7 +254,7 @@ class TrainingRun:
             self.wall_before, self.eval_s = state["wall_s"], state.get("eval_s", 0.0)
             for meta in state.get("pending", []):  # the checkpoint's model, not evaluated before the stop
                 snap = Snapshot.read(ck)
-                self._record(meta, snap, evaluate_snapshot(cfg, self.name, snap, self.episodes))
+                self._record(meta, snap, evaluate_snapshot(cfg, self.name, snap, self.groups))
         else:
             if cfg.normalize_observation or cfg.normalize_reward:
                 venv = VecNormalize(
@@ -296,6 +331,18 @@ class TrainingRun:
                 "limit_cycle_amp": self.best["limit_cycle_amp"],
                 "best_classical": dataclasses.asdict(self.baseline),
                 "admissible_effort_rms": self.cfg.max_effort_ratio * self.effort_ref,
+                **(
+                    {
+                        "selection": {
+                            "scenarios": list(self.groups),
+                            "won": int(self.best["won"]),
+                            "ratio": self.best["ratio"],
+                            "best_classical": {sc: dataclasses.asdict(b) for sc, b in self.baselines.items()},
+                        }
+                    }
+                    if cfg.eval_scenarios
+                    else {}
+                ),
             },
             config={**cfg.as_dict(), "inputs": dataclasses.asdict(cfg.inputs)},
         )

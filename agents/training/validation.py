@@ -126,19 +126,25 @@ class PendingEvaluation:
 _EVAL_ENVS = EnvCache()  # the validation envs of this process (a worker's, or the training process')
 
 
-def evaluate_snapshot(cfg: RunConfig, name: str, snap: Snapshot, episodes: list) -> dict[str, float]:
-    """Metric means of a saved model on the episodes through the leaderboard's loop (evaluate_controller),
-    deterministic, its observation statistics frozen (SB3Policy): in the validation worker or in the
-    training process, the same numbers (picklable for the worker). The global random generators are left
-    as they were (SB3's load reseeds them), so validation in the training process does not change the
-    training."""
+def evaluate_snapshot(
+    cfg: RunConfig, name: str, snap: Snapshot, groups: dict[str, list]
+) -> dict[str, dict[str, float]]:
+    """Metric means of a saved model on each group of episodes (scenario -> its validation episodes)
+    through the leaderboard's loop (evaluate_controller), deterministic, its observation statistics frozen
+    (SB3Policy, of the training scenario's plant: a regulation scenario gets its preview filled): in the
+    validation worker or in the training process, the same numbers (picklable for the worker). The global
+    random generators are left as they were (SB3's load reseeds them), so validation in the training
+    process does not change the training."""
 
     with _generators_kept():
         model = algorithm_class(cfg.algorithm).load(io.BytesIO(snap.model), device="cpu")
         norm = pickle.loads(snap.normalizer) if snap.normalizer is not None else None
         base = make(cfg.base) if cfg.base is not None else None
-        policy = SB3Policy(model, (), name, inputs=cfg.inputs, base=base, alpha=cfg.alpha, normalizer=norm)
-        return evaluate_controller(policy, episodes, _EVAL_ENVS)
+        plants = (load_scenario(cfg.scenario).spec.name,)
+        policy = SB3Policy(
+            model, plants, name, inputs=cfg.inputs, base=base, alpha=cfg.alpha, normalizer=norm
+        )
+        return {sc: evaluate_controller(policy, episodes, _EVAL_ENVS) for sc, episodes in groups.items()}
 
 
 @contextlib.contextmanager
