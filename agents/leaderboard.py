@@ -106,6 +106,28 @@ def penalty(results: list[EpisodeResult], scenario: Scenario) -> float:
 MAX_EFFORT_RATIO = 1.2  # a learned compensator may spend at most this times the baseline's effort_rms
 
 
+def why_not_beats(
+    paired: dict[str, float],
+    effort_ratio: float,
+    lc: float,
+    lc_base: float,
+    band: float,
+    max_effort_ratio: float = MAX_EFFORT_RATIO,
+) -> list[str]:
+    """Why a candidate does not beat a baseline (empty: it beats it), the rule of `verdicts`: `paired` is
+    stats.paired(candidate, baseline) of the main metric, effort_ratio the ratio of mean effort_rms, lc
+    and lc_base the mean limit_cycle_amp, band the scenario's settling band. Validation selection on
+    several scenarios (agents/training/) applies the same rule."""
+    why = []
+    if not paired["diff_hi"] < 0:
+        why.append("difference interval does not exclude 0" if paired["diff_lo"] < 0 else "worse")
+    if not effort_ratio <= max_effort_ratio:
+        why.append(f"effort {effort_ratio:.2f}x")
+    if not lc <= 1.2 * lc_base + band:
+        why.append(f"limit cycle {lc:.3g} vs {lc_base:.3g}")
+    return why
+
+
 def verdicts(table: dict[str, list[dict]], scenarios: dict[str, Scenario]) -> list[dict]:
     """For each controller that is not a built-in (plug-ins, trained models) on each scenario: does it beat
     the scenario's best classical baseline? It must (1) lower the main metric with a paired 95 % interval
@@ -124,13 +146,7 @@ def verdicts(table: dict[str, list[dict]], scenarios: dict[str, Scenario]) -> li
             v = r["vs_baseline"]
             effort = r["metrics"]["effort_rms"][0] / base["metrics"]["effort_rms"][0]
             lc, lc_base = r["metrics"]["limit_cycle_amp"][0], base["metrics"]["limit_cycle_amp"][0]
-            why = []
-            if not v["diff_hi"] < 0:
-                why.append("difference interval does not exclude 0" if v["diff_lo"] < 0 else "worse")
-            if not effort <= MAX_EFFORT_RATIO:
-                why.append(f"effort {effort:.2f}x")
-            if not lc <= 1.2 * lc_base + band:
-                why.append(f"limit cycle {lc:.3g} vs {lc_base:.3g}")
+            why = why_not_beats(v, effort, lc, lc_base, band)
             out.append(
                 {
                     "scenario": sc,

@@ -75,9 +75,10 @@ def test_every_algorithm_trains_and_its_saved_model_acts_identically(tmp_path, a
 @pytest.mark.slow
 def test_selection_on_more_scenarios_keeps_the_model_that_beats_the_most(tmp_path):
     """With validation.scenarios, every evaluation is scored on each scenario's validation episodes
-    against that scenario's best classical baseline; the kept model is the row with the most scenarios
-    beaten, then the lowest geometric mean of metric / baseline, and the manifest says so. The kept
-    model, loaded through the registry, gives the recorded main metric on the scenario's episodes."""
+    against that scenario's best classical baseline by the leaderboard's rule (paired interval, effort,
+    limit cycle); the kept model is the row with the most scenarios beaten, then the lowest geometric
+    mean of metric / baseline, and the manifest says so. The kept model, loaded through the registry,
+    gives the recorded main metric on the scenario's episodes."""
     manifest, folder = train(tmp_path, "SAC", validation={"scenarios": ["flexible_speed_reversal"]})
     rows = list(csv.DictReader((folder / "validation.csv").open()))
     assert len(rows) >= 2 and all(0 <= float(r["won"]) <= 2 and float(r["ratio"]) > 0 for r in rows)

@@ -24,10 +24,12 @@ from frictiongym.envs.config import (
 from frictiongym.envs.records import atomic_text, atomic_write, command_line, csv_text
 from frictiongym.envs.scenario import load_scenario
 
+from .. import stats
 from ..base import ZERO
 from ..engine import init_worker, provenance, stop_workers
 from ..evaluate import EnvCache
 from ..figures import save_figure
+from ..leaderboard import why_not_beats
 from ..learned import (
     algorithm_class,
 )
@@ -40,9 +42,10 @@ from .validation import (
     PendingEvaluation,
     Snapshot,
     best_classical,
-    classical_on,
+    classical_rows,
     evaluate_snapshot,
     gradient_steps,
+    means,
     validation_episodes,
 )
 from .vec_env import SEEDS_PER_RUN, TRAINING_SEEDS
@@ -139,12 +142,14 @@ class TrainingRun:
             self.eval_s += time.monotonic() - t0
             self._record(p.meta, p.snapshot, m)
 
-    def _record(self, meta: dict[str, Any], snap: Snapshot, by_scenario: dict[str, dict[str, float]]) -> None:
-        """One evaluation's row; its model becomes the selected one if it is the best so far: the lowest
-        main metric among the admissible rows or, with validation.scenarios, the most scenarios beaten
-        (mean main metric below the best classical baseline's at effort_rms at most max_effort_ratio x
-        its), then the lowest geometric mean of main metric / baseline over the scenarios."""
-        m = by_scenario[self.cfg.scenario]
+    def _record(
+        self, meta: dict[str, Any], snap: Snapshot, by_scenario: dict[str, list[dict[str, float]]]
+    ) -> None:
+        """One evaluation's row (from its episode rows by scenario); its model becomes the selected one if
+        it is the best so far: the lowest main metric among the admissible rows or, with
+        validation.scenarios, the most scenarios whose best classical baseline it beats by the
+        leaderboard's rule, then the lowest geometric mean of main metric / baseline's over them."""
+        m = means(by_scenario[self.cfg.scenario])
         zero = self.zero[self.main]
         row = {
             **meta,
@@ -175,14 +180,26 @@ class TrainingRun:
         if self.reporter is not None:
             self.reporter(row)
 
-    def _across(self, by_scenario: dict[str, dict[str, float]]) -> dict[str, float]:
-        """Scenarios beaten (the leaderboard's rule on means: main metric below the best classical
-        baseline's, effort_rms at most max_effort_ratio x its) and the geometric mean of main metric /
-        baseline's over the selection scenarios."""
+    def _across(self, by_scenario: dict[str, list[dict[str, float]]]) -> dict[str, float]:
+        """Scenarios whose best classical baseline the model beats by the leaderboard's rule
+        (leaderboard.why_not_beats: paired interval of the per-episode difference below 0, effort,
+        limit cycle; on the same validation episodes) and the geometric mean of main metric / baseline's
+        (means) over the selection scenarios."""
         won, logs = 0, []
-        for sc, m in by_scenario.items():
-            b, main = self.baselines[sc], load_scenario(sc).main_metric
-            won += m[main] < b.main and m["effort_rms"] <= self.cfg.max_effort_ratio * b.effort_rms
+        for sc, rows in by_scenario.items():
+            b, base_rows, scenario = self.baselines[sc], self.baseline_rows[sc], load_scenario(sc)
+            main, m = scenario.main_metric, means(rows)
+            v = stats.paired([r[main] for r in rows], [r[main] for r in base_rows])
+            effort = m["effort_rms"] / b.effort_rms
+            why = why_not_beats(
+                v,
+                effort,
+                m["limit_cycle_amp"],
+                b.limit_cycle_amp,
+                scenario.settle_band,
+                self.cfg.max_effort_ratio,
+            )
+            won += not why
             logs.append(math.log(max(m[main], 1e-300) / max(b.main, 1e-300)))
         return {"won": float(won), "ratio": math.exp(sum(logs) / len(logs))}
 
@@ -225,12 +242,14 @@ class TrainingRun:
         if not resume and (ck / "state.json").exists():
             raise FileExistsError(f"{out} holds an unfinished run: continue it with --resume")
         out.mkdir(parents=True, exist_ok=True)
-        classical = classical_on(self.episodes, self.envs)
+        rows = {sc: classical_rows(episodes, self.envs) for sc, episodes in self.groups.items()}
+        classical = {name: means(r) for name, r in rows[cfg.scenario].items()}
         self.baseline, self.zero = best_classical(cfg.scenario, classical), classical[ZERO]
         self.baselines = {
-            sc: self.baseline if sc == cfg.scenario else best_classical(sc, classical_on(episodes, self.envs))
-            for sc, episodes in self.groups.items()
-        }
+            sc: best_classical(sc, {name: means(r) for name, r in by_name.items()})
+            for sc, by_name in rows.items()
+        }  # and their episode rows, for the paired intervals of selection on several scenarios
+        self.baseline_rows = {sc: rows[sc][b.name] for sc, b in self.baselines.items()}
         # admissible effort: relative to the best baseline, and to the base controller in residual mode
         self.effort_ref = min(
             self.baseline.effort_rms, classical[cfg.base]["effort_rms"] if cfg.base else math.inf

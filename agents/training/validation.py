@@ -52,21 +52,35 @@ def validation_episodes(scenario: str, suite: str = VALIDATION_SUITE) -> list:
     return [e for e in load_suite(suite) if e.scenario == scenario]
 
 
-def evaluate_controller(controller: Controller, episodes: list, envs: EnvCache) -> dict[str, float]:
-    """Means of every metric over the episodes, through the one evaluation loop."""
-    rows = [r.metrics for r in run_episodes(controller, episodes, envs=envs)]
+def episode_metrics(controller: Controller, episodes: list, envs: EnvCache) -> list[dict[str, float]]:
+    """Every metric of every episode, in the episodes' order, through the one evaluation loop."""
+    return [r.metrics for r in run_episodes(controller, episodes, envs=envs)]
+
+
+def means(rows: list[dict[str, float]]) -> dict[str, float]:
+    """Means of every metric over episode rows."""
     return {k: float(np.mean([r[k] for r in rows])) for k in rows[0]}
 
 
-def classical_on(episodes: list, envs: EnvCache) -> dict[str, dict[str, float]]:
-    """Metric means of every applicable built-in controller (Zero included) on the episodes."""
+def evaluate_controller(controller: Controller, episodes: list, envs: EnvCache) -> dict[str, float]:
+    """Means of every metric over the episodes, through the one evaluation loop."""
+    return means(episode_metrics(controller, episodes, envs))
+
+
+def classical_rows(episodes: list, envs: EnvCache) -> dict[str, list[dict[str, float]]]:
+    """Episode rows of every applicable built-in controller (Zero included) on the episodes."""
 
     out = {}
     for name, factory in BUILTIN.items():
         c = factory()
         if c.applies_to(envs.scenario(episodes[0])):
-            out[name] = evaluate_controller(c, episodes, envs)
+            out[name] = episode_metrics(c, episodes, envs)
     return out
+
+
+def classical_on(episodes: list, envs: EnvCache) -> dict[str, dict[str, float]]:
+    """Metric means of every applicable built-in controller (Zero included) on the episodes."""
+    return {name: means(rows) for name, rows in classical_rows(episodes, envs).items()}
 
 
 def best_classical(scenario: str, results: dict[str, dict[str, float]]) -> Baseline:
@@ -128,9 +142,9 @@ _EVAL_ENVS = EnvCache()  # the validation envs of this process (a worker's, or t
 
 def evaluate_snapshot(
     cfg: RunConfig, name: str, snap: Snapshot, groups: dict[str, list]
-) -> dict[str, dict[str, float]]:
-    """Metric means of a saved model on each group of episodes (scenario -> its validation episodes)
-    through the leaderboard's loop (evaluate_controller), deterministic, its observation statistics frozen
+) -> dict[str, list[dict[str, float]]]:
+    """Episode rows of a saved model on each group of episodes (scenario -> its validation episodes)
+    through the leaderboard's loop (episode_metrics), deterministic, its observation statistics frozen
     (SB3Policy, of the training scenario's plant: a regulation scenario gets its preview filled): in the
     validation worker or in the training process, the same numbers (picklable for the worker). The global
     random generators are left as they were (SB3's load reseeds them), so validation in the training
@@ -144,7 +158,7 @@ def evaluate_snapshot(
         policy = SB3Policy(
             model, plants, name, inputs=cfg.inputs, base=base, alpha=cfg.alpha, normalizer=norm
         )
-        return {sc: evaluate_controller(policy, episodes, _EVAL_ENVS) for sc, episodes in groups.items()}
+        return {sc: episode_metrics(policy, episodes, _EVAL_ENVS) for sc, episodes in groups.items()}
 
 
 @contextlib.contextmanager
