@@ -77,16 +77,15 @@ class TrainingRun:
         self.pool: ProcessPoolExecutor | None = None
         self.pending: list[PendingEvaluation] = []
         self.name = f"{cfg.name}-{cfg.scenario}-s{seed}"  # unique across a config's scenarios
-        self.episodes = validation_episodes(cfg.scenario)[: cfg.eval_episodes]
-        # the selection episodes by scenario: the scenario's own, then validation.scenarios'
-        self.groups = {
-            sc: validation_episodes(sc)[: cfg.eval_episodes] for sc in (cfg.scenario, *cfg.eval_scenarios)
-        }
+        # the selection scenarios and their episodes: the scenario's own, then validation.scenarios'
+        self.scenarios = {sc: load_scenario(sc) for sc in (cfg.scenario, *cfg.eval_scenarios)}
+        self.groups = {sc: validation_episodes(sc)[: cfg.eval_episodes] for sc in self.scenarios}
         for sc, episodes in self.groups.items():
             if not episodes:
                 field = "scenario" if sc == cfg.scenario else "validation.scenarios"
                 raise ConfigError(field, f"{sc} is not in the {VALIDATION_SUITE} suite", cfg.source)
-        self.main = load_scenario(cfg.scenario).main_metric
+        self.episodes = self.groups[cfg.scenario]
+        self.main = self.scenarios[cfg.scenario].main_metric
         self.envs = EnvCache()
         self.history: list[dict[str, float]] = []
         self.best: dict[str, float] | None = None
@@ -187,7 +186,7 @@ class TrainingRun:
         (means) over the selection scenarios."""
         won, logs = 0, []
         for sc, rows in by_scenario.items():
-            b, base_rows, scenario = self.baselines[sc], self.baseline_rows[sc], load_scenario(sc)
+            b, base_rows, scenario = self.baselines[sc], self.baseline_rows[sc], self.scenarios[sc]
             main, m = scenario.main_metric, means(rows)
             v = stats.paired([r[main] for r in rows], [r[main] for r in base_rows])
             effort = m["effort_rms"] / b.effort_rms
@@ -243,13 +242,12 @@ class TrainingRun:
             raise FileExistsError(f"{out} holds an unfinished run: continue it with --resume")
         out.mkdir(parents=True, exist_ok=True)
         rows = {sc: classical_rows(episodes, self.envs) for sc, episodes in self.groups.items()}
-        classical = {name: means(r) for name, r in rows[cfg.scenario].items()}
-        self.baseline, self.zero = best_classical(cfg.scenario, classical), classical[ZERO]
-        self.baselines = {
-            sc: best_classical(sc, {name: means(r) for name, r in by_name.items()})
-            for sc, by_name in rows.items()
-        }  # and their episode rows, for the paired intervals of selection on several scenarios
+        by_scenario = {sc: {name: means(r) for name, r in by_name.items()} for sc, by_name in rows.items()}
+        self.baselines = {sc: best_classical(sc, classical) for sc, classical in by_scenario.items()}
+        # and their episode rows, for the paired intervals of selection on several scenarios
         self.baseline_rows = {sc: rows[sc][b.name] for sc, b in self.baselines.items()}
+        classical = by_scenario[cfg.scenario]
+        self.baseline, self.zero = self.baselines[cfg.scenario], classical[ZERO]
         # admissible effort: relative to the best baseline, and to the base controller in residual mode
         self.effort_ref = min(
             self.baseline.effort_rms, classical[cfg.base]["effort_rms"] if cfg.base else math.inf
