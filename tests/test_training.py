@@ -359,6 +359,17 @@ def test_config_errors_name_the_field(tmp_path, entry, field):
     assert str(path) in str(e.value)
 
 
+def test_more_validation_episodes_than_the_suite_holds_is_an_error(tmp_path):
+    """A run asking for more selection episodes than the validation suite has of a scenario stops before
+    training with the field named, rather than selecting on fewer episodes than the config says."""
+    n = len(validation_episodes(SCENARIO))
+    (cfg,) = load_config(write_config(tmp_path, "SAC", validation={"episodes": n + 1}))
+    with pytest.raises(ConfigError, match=rf"validation\.episodes.*{n + 1} asked.*has {n} of {SCENARIO}"):
+        TrainingRun(cfg, 0, tmp_path / "run", "pytest", progress=False)
+    (cfg,) = load_config(write_config(tmp_path, "SAC", validation={"episodes": n}))
+    assert len(TrainingRun(cfg, 0, tmp_path / "run", "pytest", progress=False).episodes) == n
+
+
 def test_held_out_scenarios_and_suites_are_never_trained_or_selected_on(tmp_path):
     """A generalisation scenario is refused by the config loader (and so by scripts/train.py and the
     sweeps), and model selection refuses a held-out suite; a held-out scenario may not sit in another

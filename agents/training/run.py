@@ -84,6 +84,12 @@ class TrainingRun:
             if not episodes:
                 field = "scenario" if sc == cfg.scenario else "validation.scenarios"
                 raise ConfigError(field, f"{sc} is not in the {VALIDATION_SUITE} suite", cfg.source)
+            if len(episodes) < cfg.eval_episodes:  # never select on fewer episodes than asked, silently
+                raise ConfigError(
+                    "validation.episodes",
+                    f"{cfg.eval_episodes} asked, the {VALIDATION_SUITE} suite has {len(episodes)} of {sc}",
+                    cfg.source,
+                )
         self.episodes = self.groups[cfg.scenario]
         self.main = self.scenarios[cfg.scenario].main_metric
         self.envs = EnvCache()
