@@ -38,7 +38,7 @@ from .plants.mjcf import friction_joints
 from .references import SEGMENT_KINDS, RandomReference, move_duration, trapezoid_distance
 from .sampler import REFERENCE as REFERENCE_STREAM
 from .sampler import stream
-from .step import ObservationLayout, observation_layout
+from .step import REWARD_WEIGHTS, ObservationLayout, observation_layout
 
 REFERENCE_TYPES = (
     "constant",
@@ -539,7 +539,7 @@ def load_scenario(name_or_path: str | Path, overrides: dict | None = None, **kwa
         random_sign=init.boolean("random_sign"),
         history=obs.integer("history", 0, 1000),
         privileged=obs.boolean("privileged"),
-        reward_weights={k: rw.nonneg(k, MAX_REWARD_WEIGHT) for k in ("tracking", "effort", "smoothness")},
+        reward_weights={k: rw.nonneg(k, MAX_REWARD_WEIGHT) for k in REWARD_WEIGHTS},
         nonlinear_friction=c.boolean("nonlinear_friction"),
         friction_drift=_drift(c),
         held_out=c.boolean("held_out"),

@@ -35,9 +35,10 @@ OBSERVATION_DOC = f"""
     clipped by the plant's limit. Classical controllers convert with ``command_to_action`` /
     ``action_to_command`` and read physical readings with ``decode_observation``.
 
-    Reward: -(w_t·min((e/s)², 1e6) + w_u·a² + w_du·(a - a_prev)²) with e = true output - reference at the
-    new sample; the terms are in ``info`` as reward_tracking, reward_effort, reward_smoothness and sum to
-    the reward. A diverged simulation (MuJoCo reset it, or its state is not finite) ends the episode
+    Reward: -(w_t·min((e/s)², 1e6) + w_a·min(|e/s|, 1e6) + w_u·a² + w_du·(a - a_prev)²) with e = true
+    output - reference at the new sample (w_a is 0 in every built-in scenario: a training option); the
+    terms are in ``info`` as reward_tracking, reward_tracking_abs, reward_effort, reward_smoothness and sum
+    to the reward. A diverged simulation (MuJoCo reset it, or its state is not finite) ends the episode
     (terminated, ``info["diverged"]``) with a reward below that of any step that did not diverge.
     ``info`` also holds the command, the true output, the reference and the time, at reset the episode's
     parameters, at the end ``info["episode_metrics"]``. The ground truth (qpos, qvel, bristle,

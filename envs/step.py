@@ -27,10 +27,11 @@ class Ops(NamedTuple):
     floor: Callable[[Any], Any]
     minimum: Callable[[Any, Any], Any]
     sin: Callable[[Any], Any]
+    abs: Callable[[Any], Any]
 
 
-FLOAT = Ops(math.floor, min, math.sin)
-ARRAY = Ops(np.floor, np.minimum, np.sin)
+FLOAT = Ops(math.floor, min, math.sin, abs)
+ARRAY = Ops(np.floor, np.minimum, np.sin, np.abs)
 
 
 # ---------------------------------------------------------------------------------------------- sensors
@@ -143,14 +144,18 @@ def sanitize_observation(obs: np.ndarray | list[float]) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------------------------- reward
-REWARD_TERMS = ("reward_tracking", "reward_effort", "reward_smoothness")
+REWARD_WEIGHTS = ("tracking", "tracking_abs", "effort", "smoothness")  # a scenario's reward.<name>
+REWARD_TERMS = tuple(f"reward_{w}" for w in REWARD_WEIGHTS)  # their terms in ``info``
 
 
 def reward_terms(e: Any, a: Any, a_prev: Any, weights: Mapping[str, float], ops: Ops) -> dict[str, Any]:
-    """Terms of the reward: -w_t·min((e/s)², CLIP), -w_u·a², -w_du·(a - a_prev)²; e already divided by s.
-    Each term is within [-w·CLIP, 0] (actions are clipped to [-1, 1])."""
+    """Terms of the reward: -w_t·min((e/s)², CLIP), -w_a·min(|e/s|, CLIP), -w_u·a², -w_du·(a - a_prev)²;
+    e already divided by s. The absolute term weighs small errors (a set-point's last mrad) more against
+    large ones than the squared term, as IAE and the final error do. Each term is within [-w·CLIP, 0]
+    (actions are clipped to [-1, 1])."""
     return {
         "reward_tracking": -weights["tracking"] * ops.minimum(e * e, OBS_CLIP),
+        "reward_tracking_abs": -weights["tracking_abs"] * ops.minimum(ops.abs(e), OBS_CLIP),
         "reward_effort": -weights["effort"] * a * a,
         "reward_smoothness": -weights["smoothness"] * ((a - a_prev) * (a - a_prev)),
     }
@@ -158,13 +163,15 @@ def reward_terms(e: Any, a: Any, a_prev: Any, weights: Mapping[str, float], ops:
 
 def diverged_reward(weights: Mapping[str, float]) -> float:
     """The reward of a diverged step: 1 below the worst any other step can score (each term of
-    reward_terms is at least -w·CLIP, -w_u and -4·w_du for actions in [-1, 1])."""
-    return -(weights["tracking"] * OBS_CLIP + weights["effort"] + 4.0 * weights["smoothness"]) - 1.0
+    reward_terms is at least -w·CLIP, -w_a·CLIP, -w_u and -4·w_du for actions in [-1, 1])."""
+    worst = (weights["tracking"] + weights["tracking_abs"]) * OBS_CLIP
+    return -(worst + weights["effort"] + 4.0 * weights["smoothness"]) - 1.0
 
 
 def reward_total(terms: Mapping[str, Any]) -> Any:
     """The reward: the sum of its terms."""
-    return terms["reward_tracking"] + terms["reward_effort"] + terms["reward_smoothness"]
+    t = terms
+    return t["reward_tracking"] + t["reward_tracking_abs"] + t["reward_effort"] + t["reward_smoothness"]
 
 
 def step_info(

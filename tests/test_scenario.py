@@ -71,4 +71,4 @@ def test_scenarios_extend_the_defaults_and_each_other():
     fast, slow = load_scenario("flexible_zero_speed_fast"), load_scenario("flexible_zero_speed")
     assert (fast.control_period, slow.control_period) == (0.001, 0.04)  # 0.04: the plant preset's period
     assert fast.reference == slow.reference and fast.reference.type == "constant"
-    assert slow.reward_weights == {"tracking": 1.0, "effort": 0.001, "smoothness": 0.01}  # _defaults.yaml
+    assert slow.reward_weights == {"tracking": 1.0, "tracking_abs": 0.0, "effort": 0.001, "smoothness": 0.01}

@@ -16,6 +16,7 @@ from frictiongym.envs import env_id
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.scenario import load_scenario, scenario_names
 from frictiongym.envs.servo_env import ServoEnv
+from frictiongym.envs.step import REWARD_TERMS
 
 
 def make(scenario, **kw):
@@ -110,7 +111,7 @@ def test_episode_structure_ground_truth_and_metrics():
         _obs, r, term, trunc, info = env.step(np.zeros(1, dtype=np.float32))
         n += 1
         done = term or trunc
-        total = info["reward_tracking"] + info["reward_effort"] + info["reward_smoothness"]
+        total = sum(info[k] for k in REWARD_TERMS)
         assert r == pytest.approx(total)
     assert n == 250 and trunc and not term
     m = info["episode_metrics"]

@@ -20,7 +20,7 @@ from frictiongym.envs.step import (
 )
 
 RES = 2 * np.pi / 16000  # rad per line: the M220's encoders (seed 000's conversion table)
-WEIGHTS = {"tracking": 1.0, "effort": 0.001, "smoothness": 0.01}
+WEIGHTS = {"tracking": 1.0, "tracking_abs": 0.3, "effort": 0.001, "smoothness": 0.01}
 
 
 def test_float_and_array_forms_give_the_same_bits():
@@ -50,15 +50,32 @@ def test_an_encoder_counts_whole_lines_passed():
 
 
 def test_reward_terms_are_bounded_and_a_diverged_step_scores_below_any_other():
-    weights = {"tracking": 2.0, "effort": 0.5, "smoothness": 3.0}
+    weights = {"tracking": 2.0, "tracking_abs": 7.0, "effort": 0.5, "smoothness": 3.0}
     e = np.array([0.0, 1.0, -1e9, np.inf])  # an error far outside the output scale is capped at OBS_CLIP
     a, a_prev = np.array([0.0, 1.0, -1.0, 1.0]), np.array([0.0, -1.0, 1.0, -1.0])
     terms = reward_terms(e, a, a_prev, weights, ARRAY)
     assert terms["reward_tracking"][2] == terms["reward_tracking"][3] == -2.0 * OBS_CLIP
+    assert terms["reward_tracking_abs"][2] == terms["reward_tracking_abs"][3] == -7.0 * OBS_CLIP
+    assert terms["reward_tracking_abs"][1] == -7.0 and terms["reward_tracking_abs"][0] == 0.0
     for name, w in (("reward_effort", 0.5), ("reward_smoothness", 4 * 3.0)):
         assert np.all(terms[name] <= 0.0) and terms[name].min() == -w  # a², (a - a_prev)² at most 1, 4
     worst = reward_total(terms).min()
     assert diverged_reward(weights) == worst - 1.0
+
+
+def test_the_absolute_term_prices_small_errors_as_iae_does():
+    """At e/s = 0.01 (a set-point's last 3.5 mrad on Kang's 20 deg scale) the squared term is 1 % of the
+    absolute one; at e/s = 1 they are equal: the absolute term shifts the reward's weight to small errors.
+    Off (w_a = 0, every scenario's default) the total is the three-term reward to the last bit."""
+    w = {"tracking": 1.0, "tracking_abs": 1.0, "effort": 0.0, "smoothness": 0.0}
+    small, large = (reward_terms(x, 0.0, 0.0, w, FLOAT) for x in (0.01, 1.0))
+    assert small["reward_tracking"] == pytest.approx(0.01 * small["reward_tracking_abs"])
+    assert large["reward_tracking"] == large["reward_tracking_abs"] == -1.0
+    off = {"tracking": 1.0, "tracking_abs": 0.0, "effort": 0.001, "smoothness": 0.01}
+    rng = np.random.default_rng(0)
+    e, a, ap = rng.normal(size=(3, 1000))
+    t = reward_terms(e, a, ap, off, ARRAY)
+    assert np.array_equal(reward_total(t), t["reward_tracking"] + t["reward_effort"] + t["reward_smoothness"])
 
 
 def test_observations_are_finite_float32_whichever_form_comes_in():

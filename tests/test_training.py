@@ -39,6 +39,7 @@ from frictiongym.agents.training import (
 )
 from frictiongym.agents.training.vec_env import SEEDS_PER_RUN, TRAINING_SEEDS, episode_seed
 from frictiongym.envs.config import ConfigError
+from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import load_suite
 
 ROOT = Path(__file__).parents[1]
@@ -357,6 +358,22 @@ def test_config_errors_name_the_field(tmp_path, entry, field):
     with pytest.raises(ConfigError, match=field) as e:
         load_config(path)
     assert str(path) in str(e.value)
+
+
+def test_the_absolute_tracking_term_reaches_the_training_env(tmp_path):
+    """reward.tracking_abs in a training config is the training env's weight of |e/s| (the other weights
+    stay the scenario's): from the same seed and state, with the same (zero) residual, every step's
+    reward is lower by that term alone, w_a·|e/s| > 0 while the output is off its reference."""
+    (off,) = load_config(write_config(tmp_path, "SAC"))
+    (on,) = load_config(write_config(tmp_path, "SAC", reward={"tracking_abs": 5.0}))
+    envs = [make_training_env(c, 0) for c in (off, on)]
+    w = envs[1].core.sc.reward_weights
+    assert w["tracking_abs"] == 5.0 and w["tracking"] == load_scenario(SCENARIO).reward_weights["tracking"]
+    obs = [v.reset() for v in envs]
+    assert np.array_equal(*obs)
+    for _ in range(20):
+        (o0, r0, *_), (o1, r1, *_) = (v.step(np.zeros((1, 1), dtype=np.float32)) for v in envs)
+        assert np.array_equal(o0, o1) and r1[0] < r0[0]
 
 
 def test_more_validation_episodes_than_the_suite_holds_is_an_error(tmp_path):

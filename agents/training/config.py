@@ -23,6 +23,7 @@ from frictiongym.envs.config import (
 )
 from frictiongym.envs.plants.spec import RANDOMIZATION_KEYS
 from frictiongym.envs.scenario import load_scenario
+from frictiongym.envs.step import REWARD_WEIGHTS
 
 from ..base import ZERO
 from ..learned import (
@@ -36,7 +37,6 @@ ASYMMETRIC = ("SAC", "TD3", "TQC", "CrossQ")  # the privileged critic (agents/as
 JAX = ("sbx.SAC", "sbx.TQC", "sbx.CrossQ")  # sbx's JAX learners (the optional sbx extra)
 OFF_POLICY = (*ASYMMETRIC, *JAX)  # replay-buffer learners: update_to_data applies
 ALGORITHMS = (*OFF_POLICY, "PPO", "RecurrentPPO")
-REWARD_TERMS = ("tracking", "effort", "smoothness")
 ACTIVATIONS = ("relu", "tanh", "elu", "leaky_relu")
 
 
@@ -53,7 +53,7 @@ class RunConfig:
     update_to_data: float | None  # gradient steps per env step (off-policy); None: hyperparams' own
     randomize: bool
     randomization: dict[str, tuple[float, float]]  # replaces the plant's ranges key by key
-    reward: dict[str, float]  # scenario reward weights replaced (tracking, effort, smoothness)
+    reward: dict[str, float]  # scenario reward weights replaced (tracking, tracking_abs, effort, smoothness)
     inputs: PolicyInputs
     base: str | None  # registered controller name (residual mode) or None
     alpha: float  # residual authority, fraction of the full command range
@@ -157,7 +157,7 @@ def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) 
             raise r.error(key, f"unknown randomization key; allowed: {sorted(RANDOMIZATION_KEYS)}")
         ranges[key] = r.interval(key, *RANDOMIZATION_KEYS[key])
     w = c.section("reward")
-    reward = {k: w.nonneg(k) for k in REWARD_TERMS if k in w}
+    reward = {k: w.nonneg(k) for k in REWARD_WEIGHTS if k in w}
     o = c.section("observation")
     res = c.section("residual")
     base = res["base"]
