@@ -59,6 +59,11 @@ class ConfigError(ValueError):
         self.field, self.message, self.source = field, message, source
         super().__init__(f"{source}: {field}: {message}" if source else f"{field}: {message}")
 
+    def __reduce__(self) -> tuple:
+        """Rebuilt from its three fields: a ConfigError raised in a worker process (training, validation,
+        a parallel leaderboard) reaches the caller as itself, not as a broken process pool."""
+        return (ConfigError, (self.field, self.message, self.source))
+
 
 def configs_dir() -> Path:
     """The installed configs/ folder (frictiongym.configs)."""

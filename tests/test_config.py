@@ -1,6 +1,8 @@
 """Config loading and validation: every bad value is rejected with an error naming the field."""
 
 import math
+import pickle
+from concurrent.futures import ProcessPoolExecutor
 
 import pytest
 
@@ -110,3 +112,25 @@ def test_yaml_files_are_parsed_once_per_text_and_handed_out_as_copies(tmp_path):
     assert load_yaml(f) == {"a": {"b": 1}}
     f.write_text("a: {b: 2}\n")
     assert load_yaml(f) == {"a": {"b": 2}}
+
+
+def _raise_config_error(source: str) -> None:
+    raise ConfigError("validation.episodes", "30 asked, the suite has 10", source)
+
+
+def test_a_config_error_crosses_a_process_boundary_as_itself():
+    """A ConfigError raised in a worker process (training runs, validation, parallel leaderboards run in
+    process pools) reaches the caller with its field, message and file, not as a broken pool."""
+    e = pickle.loads(pickle.dumps(ConfigError("reward.tracking", "expected a number", "a.yaml")))
+    assert (e.field, e.message, e.source, str(e)) == (
+        "reward.tracking",
+        "expected a number",
+        "a.yaml",
+        "a.yaml: reward.tracking: expected a number",
+    )
+    with (
+        ProcessPoolExecutor(1) as pool,
+        pytest.raises(ConfigError, match=r"x\.yaml: validation\.episodes: 30 asked") as err,
+    ):
+        pool.submit(_raise_config_error, "x.yaml").result()
+    assert err.value.field == "validation.episodes"
