@@ -56,7 +56,7 @@ class PolicyInputs:
     def size(self, scenario: Scenario) -> int:
         """Length of the model's input on this scenario."""
         sc = dataclasses.replace(scenario, history=self.history, privileged=self.privileged)
-        return sc.layout.size + int(self.base_action) + DIFFERENCES * int(self.differences)
+        return model_input_size(sc.layout.size, self.base_action, self.differences)
 
     def actor_indices(self, scenario: Scenario) -> list[int]:
         """Indices of the model input the actor may read: all but the privileged block."""
@@ -66,6 +66,12 @@ class PolicyInputs:
 
 
 DIFFERENCES = 2  # inputs PolicyInputs.differences appends: tracking error, reference change over the preview
+
+
+def model_input_size(env_obs_size: int, base_action: bool, differences: bool) -> int:
+    """Length of a model's input: the env's observation (its history and privileged blocks included), then
+    the base controller's action (residual mode), then the DIFFERENCES (policy_observation's order)."""
+    return env_obs_size + int(base_action) + DIFFERENCES * int(differences)
 
 
 def difference_indices(scenario: Scenario, fill: int = 0) -> tuple[int, int, int]:

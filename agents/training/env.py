@@ -17,10 +17,10 @@ from frictiongym.envs.scenario import load_scenario
 from ..base import Controller, EpisodeContext
 from ..evaluate import controller_overrides
 from ..learned import (
-    DIFFERENCES,
     LearnedNeeds,
     PolicyInputs,
     difference_indices,
+    model_input_size,
     policy_observation,
     residual_action,
 )
@@ -41,7 +41,7 @@ class ResidualEnv(gym.Wrapper):
         super().__init__(env)
         self.base, self.alpha = base, alpha
         self.differences = difference_indices(env.unwrapped.scenario) if differences else None
-        n = env.observation_space.shape[0] + int(base is not None) + DIFFERENCES * int(differences)
+        n = model_input_size(env.observation_space.shape[0], base is not None, differences)
         self.observation_space = spaces.Box(-np.inf, np.inf, (n,), np.float32)
         self.knowledge = knowledge_defaults()
 

@@ -26,7 +26,7 @@ from frictiongym.envs.suites import seed_range
 from frictiongym.envs.vector import ServoVectorEnv
 
 from ..base import Controller, EpisodeContext
-from ..learned import DIFFERENCES, difference_indices, policy_observation, residual_action
+from ..learned import difference_indices, model_input_size, policy_observation, residual_action
 from ..settings import knowledge_defaults
 
 TRAINING_SEEDS, _LAST = seed_range("training")  # configs/suites.yaml's range: no suite or study uses it
@@ -90,7 +90,7 @@ class TrainingVecEnv(_vec_env_base()):
         self.slots = [_Slot(self, i) for i in range(n_envs)]
         self.u_base: list[np.ndarray] = [np.zeros(1)] * n_envs  # each env's base action now, as it gave it
         self.differences = difference_indices(self.scenario) if differences else None
-        size = self.core.obs_dim + int(self.bases is not None) + DIFFERENCES * int(differences)
+        size = model_input_size(self.core.obs_dim, self.bases is not None, differences)
         space = spaces.Box(-np.inf, np.inf, (size,), np.float32)
         super().__init__(n_envs, space, self.venv.single_action_space)
         self._actions = np.zeros((n_envs, 1), dtype=np.float32)
