@@ -376,6 +376,34 @@ def test_the_absolute_tracking_term_reaches_the_training_env(tmp_path):
         assert np.array_equal(o0, o1) and r1[0] < r0[0]
 
 
+def test_a_training_reference_override_reaches_the_training_envs_only(tmp_path):
+    """reference: {...} replaces keys of the training scenario's random reference for the training envs
+    (here holds only: the reference never moves from its start), while validation keeps the scenario's
+    own episodes; a bad key, or a scenario without a random reference, is an error naming the field."""
+    path = write_config(tmp_path, "SAC", reference={"segments": ["hold"], "segment_s": [5.0, 10.0]})
+    path.write_text(path.read_text().replace(SCENARIO, "flexible_random"))
+    (cfg,) = load_config(path)
+    assert cfg.reference == {"segments": ["hold"], "segment_s": [5.0, 10.0]}
+    venv = make_training_env(cfg, 0)
+    assert venv.core.sc.reference.family.kinds == ("hold",)
+    venv.reset()
+    refs = [venv.core.ref[0, 0]]
+    for _ in range(50):
+        venv.step(np.zeros((1, 1), dtype=np.float32))
+        refs.append(venv.core.ref[0, venv.core.k[0]])
+    assert len(set(refs)) == 1  # a hold from the initial value
+    run = TrainingRun(cfg, 0, tmp_path / "run", "pytest", progress=False)
+    assert run.episodes == validation_episodes("flexible_random")[: cfg.eval_episodes]
+    assert run.envs.scenario(run.episodes[0]).reference.family.kinds != ("hold",)
+    bad = write_config(tmp_path, "SAC", reference={"segments": ["nope"]})
+    bad.write_text(bad.read_text().replace(SCENARIO, "flexible_random"))
+    with pytest.raises(ConfigError, match=r"flexible_random\.reference\.segments") as e:
+        load_config(bad)
+    assert str(bad) in str(e.value)
+    with pytest.raises(ConfigError, match=r"reference.*only a random reference"):
+        load_config(write_config(tmp_path, "SAC", reference={"segment_s": [1.0, 2.0]}))
+
+
 def test_more_validation_episodes_than_the_suite_holds_is_an_error(tmp_path):
     """A run asking for more selection episodes than the validation suite has of a scenario stops before
     training with the field named, rather than selecting on fewer episodes than the config says."""

@@ -68,6 +68,9 @@ class RunConfig:
     # more scenarios of the plant whose validation episodes select the model beside the scenario's own
     # (validation.scenarios): the most scenarios beaten, then the geometric mean of metric / baseline
     eval_scenarios: tuple[str, ...] = ()
+    # the training envs' random-reference keys replaced (e.g. segments, segment_s); validation and every
+    # evaluation keep the scenario's own references
+    reference: dict[str, Any] = field(default_factory=dict)
     source: str = ""  # the config file
 
     def as_dict(self) -> dict[str, Any]:
@@ -158,6 +161,7 @@ def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) 
         ranges[key] = r.interval(key, *RANDOMIZATION_KEYS[key])
     w = c.section("reward")
     reward = {k: w.nonneg(k) for k in REWARD_WEIGHTS if k in w}
+    reference = _training_reference(c, scenario)
     o = c.section("observation")
     res = c.section("residual")
     base = res["base"]
@@ -222,6 +226,7 @@ def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) 
         max_wall_time_s=c.positive("max_wall_time_s"),
         hyperparams=hyper,
         eval_scenarios=_eval_scenarios(v, scenario),
+        reference=reference,
         source=source,
     )
     if base is None:
@@ -229,6 +234,27 @@ def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) 
     for node in (r, w, o, res, hp, n, v, c):
         node.done()
     return cfg
+
+
+def _training_reference(c: Node, scenario: str) -> dict[str, Any]:
+    """`reference`: keys of the training scenario's random reference family replaced for the training
+    envs (the type stays; checked by loading the scenario with them, errors naming reference.<key>)."""
+    ref = c.get("reference") or {}
+    if not isinstance(ref, dict):
+        raise c.error("reference", f"expected a mapping of random-reference keys, got {ref!r}")
+    if not ref:
+        return {}
+    if load_scenario(scenario).reference.type != "random" or "type" in ref:
+        raise c.error(
+            "reference", f"only a random reference's keys may be replaced ({scenario}'s type stays)"
+        )
+    try:
+        load_scenario(scenario, {"reference": ref})
+    except ConfigError as e:
+        raise c.error(
+            e.field if e.field.startswith("reference") else f"reference.{e.field}", e.message
+        ) from None
+    return copy.deepcopy(ref)
 
 
 def _eval_scenarios(v: Node, scenario: str) -> tuple[str, ...]:
@@ -287,4 +313,6 @@ def scenario_overrides(cfg: RunConfig) -> dict[str, Any]:
         out["plant_overrides"] = {"randomization": {k: list(v) for k, v in cfg.randomization.items()}}
     if cfg.reward:
         out["reward"] = dict(cfg.reward)
+    if cfg.reference:
+        out["reference"] = copy.deepcopy(cfg.reference)
     return out
