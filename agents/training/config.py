@@ -22,7 +22,7 @@ from frictiongym.envs.config import (
     preset_path,
 )
 from frictiongym.envs.plants.spec import RANDOMIZATION_KEYS
-from frictiongym.envs.scenario import load_scenario
+from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.step import REWARD_WEIGHTS
 
 from ..base import ZERO
@@ -147,7 +147,8 @@ def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) 
         algorithm_class(algo)  # an optional extra (sbx) may be missing
     except ValueError as e:
         raise ConfigError("algorithm", str(e), source) from None
-    if load_scenario(scenario).held_out:  # (an unknown scenario is an error naming the available ones)
+    trained = load_scenario(scenario)  # (an unknown scenario is an error naming the available ones)
+    if trained.held_out:
         raise ConfigError(
             f"scenarios.{scenario}",
             "is a held-out (generalisation) scenario: it is never trained or selected on",
@@ -161,7 +162,7 @@ def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) 
         ranges[key] = r.interval(key, *RANDOMIZATION_KEYS[key])
     w = c.section("reward")
     reward = {k: w.nonneg(k) for k in REWARD_WEIGHTS if k in w}
-    reference = _training_reference(c, scenario)
+    reference = _training_reference(c, trained)
     o = c.section("observation")
     res = c.section("residual")
     base = res["base"]
@@ -225,7 +226,7 @@ def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) 
         max_effort_ratio=v.positive("max_effort_ratio"),
         max_wall_time_s=c.positive("max_wall_time_s"),
         hyperparams=hyper,
-        eval_scenarios=_eval_scenarios(v, scenario),
+        eval_scenarios=_eval_scenarios(v, trained),
         reference=reference,
         source=source,
     )
@@ -236,7 +237,7 @@ def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) 
     return cfg
 
 
-def _training_reference(c: Node, scenario: str) -> dict[str, Any]:
+def _training_reference(c: Node, scenario: Scenario) -> dict[str, Any]:
     """`reference`: keys of the training scenario's random reference family replaced for the training
     envs (the type stays; checked by loading the scenario with them, errors naming reference.<key>)."""
     ref = c.get("reference") or {}
@@ -244,12 +245,12 @@ def _training_reference(c: Node, scenario: str) -> dict[str, Any]:
         raise c.error("reference", f"expected a mapping of random-reference keys, got {ref!r}")
     if not ref:
         return {}
-    if load_scenario(scenario).reference.type != "random" or "type" in ref:
+    if scenario.reference.type != "random" or "type" in ref:
         raise c.error(
-            "reference", f"only a random reference's keys may be replaced ({scenario}'s type stays)"
+            "reference", f"only a random reference's keys may be replaced ({scenario.name}'s type stays)"
         )
     try:
-        load_scenario(scenario, {"reference": ref})
+        load_scenario(scenario.name, {"reference": ref})
     except ConfigError as e:
         raise c.error(
             e.field if e.field.startswith("reference") else f"reference.{e.field}", e.message
@@ -257,13 +258,13 @@ def _training_reference(c: Node, scenario: str) -> dict[str, Any]:
     return copy.deepcopy(ref)
 
 
-def _eval_scenarios(v: Node, scenario: str) -> tuple[str, ...]:
+def _eval_scenarios(v: Node, scenario: Scenario) -> tuple[str, ...]:
     """validation.scenarios: more scenarios of the training scenario's plant to select on (their
     validation-suite episodes; never a held-out scenario), the training scenario itself left out."""
     names = v.get("scenarios") or []
     if not isinstance(names, list) or not all(isinstance(x, str) for x in names):
         raise v.error("scenarios", f"expected a list of scenario names, got {names!r}")
-    plant = load_scenario(scenario).spec.name
+    plant = scenario.spec.name
     for name in names:
         try:
             sc = load_scenario(name)
@@ -272,8 +273,8 @@ def _eval_scenarios(v: Node, scenario: str) -> tuple[str, ...]:
         if sc.held_out:
             raise v.error("scenarios", f"{name} is held-out (generalisation): never selected on")
         if sc.spec.name != plant:
-            raise v.error("scenarios", f"{name} is a {sc.spec.name} scenario; {scenario} is {plant}'s")
-    return tuple(dict.fromkeys(n for n in names if n != scenario))
+            raise v.error("scenarios", f"{name} is a {sc.spec.name} scenario; {scenario.name} is {plant}'s")
+    return tuple(dict.fromkeys(n for n in names if n != scenario.name))
 
 
 def sb3_schedule(update_to_data: float, n_envs: int) -> tuple[int, int]:
