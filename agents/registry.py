@@ -66,13 +66,20 @@ REFERENCES = (ZERO, *LIMITS)
 MODELS_DIR = Path(__file__).parent / "models"  # committed trained models, by group
 
 
-def committed_models(group: str) -> list[Path]:
-    """The committed model folders of a group (agents/models/<group>/*/manifest.yaml): `headline` (on the
-    default leaderboard), `sim2real` (the friction-randomisation study's agents) or `generalist` (one
-    compensator per plant for all of its scenarios, docs/training.md "Generalists"; on the leaderboard
-    with `--models agents/models/generalist`)."""
-    folder = MODELS_DIR / group
-    return sorted(d for d in folder.iterdir() if (d / MANIFEST).is_file()) if folder.is_dir() else []
+# The committed groups the default leaderboard runs: the specialists, each trained on one scenario, and
+# one compensator per plant for all of its scenarios (issue 21; docs/training.md "Generalists").
+LEADERBOARD_GROUPS = ("headline", "generalist")
+
+
+def committed_models(*groups: str) -> list[Path]:
+    """The committed model folders of the groups (agents/models/<group>/*/manifest.yaml), group by group:
+    `headline` and `generalist` (on the default leaderboard, `LEADERBOARD_GROUPS`) or `sim2real` (the
+    friction-randomisation study's agents)."""
+    out: list[Path] = []
+    for group in groups:
+        folder = MODELS_DIR / group
+        out += sorted(d for d in folder.iterdir() if (d / MANIFEST).is_file()) if folder.is_dir() else []
+    return out
 
 
 def model_dirs(paths: Sequence[str | Path]) -> list[Path]:

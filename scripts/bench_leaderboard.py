@@ -4,7 +4,8 @@ with --ray on a local Ray with 1 and N workers, and with --models on N workers w
 those folders added (the default leaderboard's own run: target at most 1.3x the classical-only time),
 measured side by side in one run.
 
-    python scripts/bench_leaderboard.py [--workers 2] [--ray] [--models agents/models/headline] [--no-serial]
+    python scripts/bench_leaderboard.py [--workers 2] [--ray] [--no-serial]
+        [--models agents/models/headline agents/models/generalist]
 
 Prints the physics floor first (the suite's physics steps per plant times a bare mj_step loop's time per
 step: what no evaluation code can go below), then the wall time of each run, the speed-ups, the Ray

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from frictiongym.agents import leaderboard
 from frictiongym.agents.engine import RunMismatch, add_backend_arguments, backend_of, run_interruptibly
-from frictiongym.agents.registry import committed_models
+from frictiongym.agents.registry import LEADERBOARD_GROUPS, committed_models
 from frictiongym.envs.scenario import scenario_names
 from frictiongym.envs.suites import Episode, suite_names
 
@@ -54,7 +54,8 @@ def main(argv: list[str] | None = None) -> int:
         "--models",
         nargs="*",
         type=Path,
-        help="saved-model folders (manifest.yaml); default: the committed ones (agents/models/headline); "
+        help="saved-model folders (manifest.yaml); default: the committed ones "
+        "(agents/models/headline and agents/models/generalist); "
         "--models alone: none (classical and plug-in controllers only, no rl extra needed)",
     )
     add_backend_arguments(ap)
@@ -71,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.scenarios
         else None
     )
-    models = args.models if args.models is not None else committed_models("headline")
+    models = args.models if args.models is not None else committed_models(*LEADERBOARD_GROUPS)
     t0 = time.perf_counter()
 
     def run() -> int:

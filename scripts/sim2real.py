@@ -14,7 +14,8 @@ model_error.csv/.png (classical baselines designed on the identified model of ra
 the true parameters: the closing-the-loop study of identification) and sim2real.md (which controller keeps
 its lead where, where each breaks, what model error costs).
 Default models: the committed agents (agents/models/sim2real: trained without randomisation and with
-wide ranges; agents/models/headline: with the nominal ranges); those that apply to the scenario run.
+wide ranges; agents/models/headline and agents/models/generalist, the default leaderboard's: with the
+nominal ranges); those that apply to the scenario run.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from pathlib import Path
 
 from frictiongym.agents import sim2real
 from frictiongym.agents.engine import RunMismatch, add_backend_arguments, backend_of, run_interruptibly
-from frictiongym.agents.registry import committed_models
+from frictiongym.agents.registry import LEADERBOARD_GROUPS, committed_models
 from frictiongym.envs.scenario import scenario_names
 
 
@@ -55,7 +56,7 @@ def main(argv: list[str] | None = None) -> int:
     ray = backend_of(args, ap)
     if min(args.seeds, args.points - 1, args.joint + 1, args.workers) < 1:
         ap.error("--seeds >= 1, --points >= 2, --joint >= 0, --workers >= 1")
-    default = [*committed_models("sim2real"), *committed_models("headline")]  # those that apply are run
+    default = committed_models("sim2real", *LEADERBOARD_GROUPS)  # those that apply are run
     models = tuple(str(m) for m in (args.models if args.models is not None else default))
 
     def run() -> int:

@@ -7,11 +7,8 @@ from frictiongym.envs.suites import load_suite
 
 
 def test_a_saved_models_applicability_from_its_manifest_equals_the_loaded_models():
-    folders = [
-        *registry.committed_models("headline"),
-        *registry.committed_models("sim2real"),
-        *registry.committed_models("generalist"),  # a preview filled in on m220_regulation (learned.py)
-    ]
+    folders = registry.committed_models(*registry.LEADERBOARD_GROUPS, "sim2real")
+    # (the generalists fill a missing preview in on m220_regulation, learned.py)
     models = tuple(str(f) for f in folders)
     scenarios = [load_scenario(s) for s in dict.fromkeys(e.scenario for e in load_suite("default"))]
     names = list(registry._manifests(models))
@@ -35,11 +32,7 @@ def test_every_committed_model_acts_through_the_rowwise_actor_within_float32_rou
 
     from frictiongym.agents.learned import RowwiseActor
 
-    folders = [
-        *registry.committed_models("headline"),
-        *registry.committed_models("sim2real"),
-        *registry.committed_models("generalist"),
-    ]
+    folders = registry.committed_models(*registry.LEADERBOARD_GROUPS, "sim2real")
     models = tuple(str(f) for f in folders)
     rng = np.random.default_rng(2)
     for name in registry._manifests(models):
@@ -50,3 +43,34 @@ def test_every_committed_model_acts_through_the_rowwise_actor_within_float32_rou
         x = rng.normal(0.0, 2.0, (50, *model.observation_space.shape)).astype(np.float32)
         want = np.array([model.predict(row, deterministic=True)[0] for row in x])
         assert np.abs(model.policy.unscale_action(actor(x)) - want).max() <= 1e-5, name
+
+
+def test_the_default_leaderboard_runs_the_specialists_and_one_generalist_set_per_plant_it_has():
+    """Issue 21: the generalists run on the default leaderboard beside the specialists, group by group,
+    each a distinct controller name; a generalist set applies to every default-suite scenario of its
+    plant (one layout per plant: learned.preview_fill), a specialist is not required to."""
+    from frictiongym.scripts import leaderboard as cli
+
+    folders = registry.committed_models(*registry.LEADERBOARD_GROUPS)
+    assert folders == [*registry.committed_models("headline"), *registry.committed_models("generalist")]
+    assert cli.committed_models is registry.committed_models and cli.LEADERBOARD_GROUPS == (
+        "headline",
+        "generalist",
+    )
+    models = tuple(str(f) for f in folders)
+    names = list(registry._manifests(models))
+    assert len(set(names)) == len(names) == len(folders)
+    default = [load_scenario(s) for s in dict.fromkeys(e.scenario for e in load_suite("default"))]
+    plants = set()
+    for name in names:
+        if not name.startswith("GenSAC"):
+            continue
+        why_not = registry.why_not(name, models)
+        own = [
+            sc
+            for sc in default
+            if sc.spec.name == load_scenario(registry._manifests(models)[name].scenario).spec.name
+        ]
+        assert own and all(why_not(sc) is None for sc in own), name
+        plants.add(own[0].spec.name)
+    assert plants >= {"kang_robot", "m220", "flexible_servo"}
