@@ -8,6 +8,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -208,10 +209,11 @@ def aggregate_csv(agg: list[dict]) -> str:
     return buf.getvalue()
 
 
-def figures(board: Board) -> list[tuple[str, Any]]:
+def figures(board: Board) -> Iterator[tuple[str, Any]]:
     """(file name, matplotlib figure) in leaderboard.md's order: g per scenario (strip plots; 1 - m/m_Zero
     where g is not scored), the per-plant IQM of g with intervals, the per-plant performance profiles of
-    g, and per scenario the time responses of its best and worst episodes (board.responses)."""
+    g, and per scenario the time responses of its best and worst episodes (board.responses). One at a time:
+    the caller saves and closes each before the next is drawn."""
     results, table, agg, scenarios = board.results, board.table, board.aggregate, board.scenarios
     import matplotlib
 
@@ -220,7 +222,6 @@ def figures(board: Board) -> list[tuple[str, Any]]:
 
     ctrls = list(dict.fromkeys(r.controller for r in results))
     colour = {c: f"C{i % 10}" for i, c in enumerate(ctrls)}
-    figs = []
     scs = list(table)
     fig, axes = plt.subplots(1, len(scs), figsize=(3.2 * len(scs), 3.8), squeeze=False)
     for ax, sc in zip(axes[0], scs, strict=True):
@@ -238,7 +239,7 @@ def figures(board: Board) -> list[tuple[str, Any]]:
             ax.axhline(y, color="0.6", lw=0.8)
         ax.set_title(sc, fontsize=8)
         ax.set_ylabel("g (friction penalty removed)" if scored else "1 - m/m_Zero (g not scored)", fontsize=7)
-    figs.append(("scores.png", fig))
+    yield "scores.png", fig
 
     sets = [a for a in agg if a["rows"]]
     if sets:
@@ -256,7 +257,7 @@ def figures(board: Board) -> list[tuple[str, Any]]:
             ax.axvline(1.0, color="0.6", lw=0.8)
             ax.set_title(f"{a['plant']}: {len(a['scenarios'])} scenario(s)", fontsize=8)
         axes[-1, 0].set_xlabel("IQM of g (95 % stratified bootstrap)")
-        figs.append(("aggregate_iqm.png", fig))
+        yield "aggregate_iqm.png", fig
 
         fig, axes = plt.subplots(1, len(sets), figsize=(4.2 * len(sets), 3.6), squeeze=False)
         for ax, a in zip(axes[0], sets, strict=True):
@@ -267,7 +268,7 @@ def figures(board: Board) -> list[tuple[str, Any]]:
             ax.set(xlabel="g threshold τ", title=f"{a['plant']}: {len(a['scenarios'])} scenario(s)")
             ax.legend(fontsize=6)
         axes[0, 0].set_ylabel("fraction of episodes with g > τ")
-        figs.append(("performance_profile.png", fig))
+        yield "performance_profile.png", fig
 
     for sc, (best, worst) in board.responses.items():
         main = scenarios[sc].main_metric
@@ -281,7 +282,4 @@ def figures(board: Board) -> list[tuple[str, Any]]:
         ax[0].set(title=f"{sc}: best and worst episode", ylabel="output")
         ax[0].legend(fontsize=7)
         ax[1].set(xlabel="t (s)", ylabel="command")
-        figs.append((f"response_{sc}.png", fig))
-    return figs
-
-
+        yield f"response_{sc}.png", fig

@@ -9,7 +9,7 @@ import pytest
 
 from frictiongym.agents import leaderboard, registry
 from frictiongym.envs.scenario import load_scenario
-from frictiongym.envs.suites import load_suite
+from frictiongym.envs.suites import Episode, load_suite
 
 ROOT = Path(__file__).parents[1]
 
@@ -145,3 +145,24 @@ def test_verdict_requires_a_paired_win_bounded_effort_and_no_new_limit_cycle():
     assert got["good"]["beats_baseline"] and not got["chatter"]["beats_baseline"]
     assert got["chatter"]["why_not"] == "effort 1.50x"
     assert got["cycle"]["why_not"].startswith("limit cycle") and "exclude 0" in got["unsure"]["why_not"]
+
+
+def test_figures_are_drawn_one_at_a_time_each_closed_before_the_next(tmp_path, monkeypatch):
+    """The default suite draws 25+ figures; drawing them all before saving any kept them all open
+    (matplotlib warned at 20). Each figure is saved and closed before the next is drawn."""
+    import matplotlib.pyplot as plt
+
+    open_at_save = []
+
+    def save(fig, out, name):
+        open_at_save.append(len(plt.get_fignums()))
+        return save_figure(fig, out, name)
+
+    save_figure = leaderboard.save_figure
+    monkeypatch.setattr(leaderboard, "save_figure", save)
+    plt.close("all")
+    episodes = [Episode("kang_regulation_20deg", 0, False), Episode("m220_regulation", 0, False)]
+    leaderboard.run(controllers=["PD"], out=tmp_path, progress=False, episodes=episodes)
+    assert len(open_at_save) == len(list(tmp_path.glob("*.png"))) >= 3  # scores and two responses at least
+    assert open_at_save == [1] * len(open_at_save)
+    assert plt.get_fignums() == []
