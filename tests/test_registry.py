@@ -53,24 +53,19 @@ def test_the_default_leaderboard_runs_the_specialists_and_one_generalist_set_per
 
     folders = registry.committed_models(*registry.LEADERBOARD_GROUPS)
     assert folders == [*registry.committed_models("headline"), *registry.committed_models("generalist")]
-    assert cli.committed_models is registry.committed_models and cli.LEADERBOARD_GROUPS == (
-        "headline",
-        "generalist",
-    )
+    assert cli.committed_models is registry.committed_models
+    assert cli.LEADERBOARD_GROUPS == ("headline", "generalist")
     models = tuple(str(f) for f in folders)
-    names = list(registry._manifests(models))
-    assert len(set(names)) == len(names) == len(folders)
+    manifests = registry._manifests(models)
+    assert len(manifests) == len(folders)  # names distinct
     default = [load_scenario(s) for s in dict.fromkeys(e.scenario for e in load_suite("default"))]
     plants = set()
-    for name in names:
-        if not name.startswith("GenSAC"):
+    for folder, (name, m) in zip(folders, manifests.items(), strict=True):  # read in folder order
+        if folder.parent.name != "generalist":
             continue
+        plant = load_scenario(m.scenario).spec.name
         why_not = registry.why_not(name, models)
-        own = [
-            sc
-            for sc in default
-            if sc.spec.name == load_scenario(registry._manifests(models)[name].scenario).spec.name
-        ]
+        own = [sc for sc in default if sc.spec.name == plant]
         assert own and all(why_not(sc) is None for sc in own), name
-        plants.add(own[0].spec.name)
+        plants.add(plant)
     assert plants >= {"kang_robot", "m220", "flexible_servo"}
