@@ -290,7 +290,7 @@ def run(
     aggregate.csv (the per-plant aggregates) and PNG plots, each written atomically."""
     models = tuple(str(m) for m in models)
     available = registry.available(models)
-    names = controllers or list(available)
+    names = controllers or registry.default_entries(models)
     unknown = [n for n in names if n not in available]
     if unknown:
         raise ValueError(f"unknown controllers {unknown}; available: {list(available)}")

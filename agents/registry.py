@@ -7,7 +7,7 @@ saved models: a folder with a manifest.yaml (name, algorithm, model file), or a 
                     model: model.zip        # relative to the manifest (default model.zip)
                     normalizer: vecnormalize.pkl   # optional: frozen VecNormalize statistics
                     plants: [kang_robot]    # optional: plants it applies to
-                    base_controller: RDFC   # optional: residual over this built-in controller...
+                    base_controller: RDFC   # optional: residual over this base (BUILTIN or BASES)...
                     alpha: 0.05             # ...with this authority (default 1)
                     inputs: {history: 0, privileged: false, base_action: true}   # optional
                     ...                     # anything else (training record) is kept, not read here
@@ -24,7 +24,17 @@ from frictiongym.envs.config import ConfigError
 from frictiongym.envs.scenario import Scenario, load_scenario
 
 from .base import ZERO, Controller, Zero
-from .classical import PD, PID, RDFC, CoulombViscousFF, LabPD, LuGreObserver, Southward, StateFeedback
+from .classical import (
+    PD,
+    PID,
+    RDFC,
+    CoulombViscousFF,
+    LabPD,
+    LuGreObserver,
+    Southward,
+    SpeedScheduled,
+    StateFeedback,
+)
 from .learned import SB3Policy, policy_why_not
 from .limits import Ideal, Oracle
 from .manifest import MANIFEST, Manifest
@@ -44,6 +54,28 @@ BUILTIN: dict[str, Callable[[], Controller]] = {
     "LuGreObserver": LuGreObserver,
     "CoulombViscousFF": CoulombViscousFF,
 }
+
+
+def builtin(name: str) -> Controller:
+    """A new built-in controller called name (an unknown name is an error listing them)."""
+    if name not in BUILTIN:
+        raise ValueError(f"{name!r} is not a built-in controller; one of {list(BUILTIN)}")
+    return BUILTIN[name]()
+
+
+# Residual bases that are not baselines (no seed describes them): made by name like any controller (a
+# leaderboard runs one when asked for it, as an entry), never in a default run or a baseline.
+BASES: dict[str, Callable[[], Controller]] = {
+    "SpeedScheduled": partial(SpeedScheduled, builtin),
+}
+
+
+def base_controller(name: str) -> Controller:
+    """A new residual base: a built-in controller other than Zero, or one of BASES."""
+    factories = {**{n: f for n, f in BUILTIN.items() if n != ZERO}, **BASES}
+    if name not in factories:
+        raise ValueError(f"unknown base controller {name!r}; allowed: {sorted(factories)}")
+    return factories[name]()
 
 
 def uncompensated_loop(name: str) -> Controller:
@@ -100,10 +132,11 @@ def model_factory(folder: Path) -> tuple[str, Callable[[], Controller]]:
     """(name, factory) of a saved model's folder, checked against its manifest."""
     m = Manifest.read(folder)
     base = m.base_controller
-    if base is not None and base not in BUILTIN:
-        raise ConfigError(
-            "base_controller", f"{base!r} is not one of {sorted(BUILTIN)}", str(folder / MANIFEST)
-        )
+    if base is not None:
+        try:
+            base_controller(base)
+        except ValueError as e:
+            raise ConfigError("base_controller", str(e), str(folder / MANIFEST)) from None
     norm = folder / m.normalizer if m.normalizer else None
 
     def factory() -> Controller:
@@ -114,7 +147,7 @@ def model_factory(folder: Path) -> tuple[str, Callable[[], Controller]]:
             m.name,
             normalizer=norm,
             inputs=m.policy_inputs,
-            base=BUILTIN[base]() if base is not None else None,
+            base=base_controller(base) if base is not None else None,
             alpha=m.alpha,
         )
 
@@ -133,21 +166,21 @@ def why_not(name: str, models: Sequence[str | Path] = ()) -> Callable[[Scenario]
     m = _manifests(tuple(str(x) for x in models)).get(name)
     if m is None or m.scenario is None:
         return make(name, models).why_not
-    base = BUILTIN[m.base_controller]() if m.base_controller is not None else None
+    base = base_controller(m.base_controller) if m.base_controller is not None else None
     observes = (m.policy_inputs.size(load_scenario(m.scenario)),)
     return partial(policy_why_not, observes, m.policy_inputs, m.plants, base)
 
 
 def available(models: Sequence[str | Path] = ()) -> dict[str, Callable[[], Controller]]:
-    """Every controller factory by name: built-ins, the physical-limit references, the entry-point group's,
-    then the saved models under
+    """Every controller factory by name: built-ins, the physical-limit references, the residual bases, the
+    entry-point group's, then the saved models under
     `models` (none may shadow an earlier name). Built once per set of model folders and process."""
     return dict(_available(tuple(str(m) for m in models)))
 
 
 @cache
 def _available(models: tuple[str, ...]) -> dict[str, Callable[[], Controller]]:
-    out = {**BUILTIN, **LIMITS}
+    out = {**BUILTIN, **LIMITS, **BASES}
     extra = [(ep.name, ep.value, ep.load) for ep in entry_points(group=ENTRY_POINT_GROUP)]
     for folder in model_dirs(models):
         name, factory = model_factory(folder)
@@ -157,6 +190,11 @@ def _available(models: tuple[str, ...]) -> dict[str, Callable[[], Controller]]:
             raise ValueError(f"controller {name!r} ({where}) shadows another controller of that name")
         out[name] = load()
     return out
+
+
+def default_entries(models: Sequence[str | Path] = ()) -> list[str]:
+    """The controllers a run takes when none are named: every available one but the residual bases."""
+    return [n for n in _available(tuple(str(m) for m in models)) if n not in BASES]
 
 
 def make(name: str, models: Sequence[str | Path] = ()) -> Controller:

@@ -25,7 +25,7 @@ from frictiongym.envs.config import ConfigError
 
 from .evaluate import EnvCache
 from .learned import PolicyInputs, SB3Policy, algorithm_class
-from .registry import make
+from .registry import base_controller
 from .training import (
     ResidualEnv,
     best_classical,
@@ -44,7 +44,7 @@ class Residual(ResidualEnv):
     analog rate feedback) is refused: the zoo builds the env with gym.make, before any wrapper."""
 
     def __init__(self, env: gym.Env, base: str, alpha: float):
-        controller = make(base)
+        controller = base_controller(base)
         scenario = env.unwrapped.scenario
         if (reason := controller.why_not(scenario)) is not None:
             raise ConfigError("env_wrapper.base", f"{base} does not apply to {scenario.name}: {reason}")
@@ -125,7 +125,7 @@ def zoo_policy(run: str | Path, algo: str, name: str | None = None) -> SB3Policy
         name=name or f"zoo-{algo}-{run.name}",
         normalizer=params / "vecnormalize.pkl" if (params / "vecnormalize.pkl").exists() else None,
         inputs=PolicyInputs(base_action=residual is not None),
-        base=make(residual["base"]) if residual else None,
+        base=base_controller(residual["base"]) if residual else None,
         alpha=residual["alpha"] if residual else 1.0,
     )
 

@@ -67,11 +67,7 @@ def timed(
     the saved models of `models` added to the built-in controllers."""
     episodes = load_suite("default")
     t0 = time.perf_counter()
-    names = [
-        *registry.BUILTIN,
-        *registry.LIMITS,
-        *(n for n in registry.available(models) if n not in registry.BUILTIN and n not in registry.LIMITS),
-    ]
+    names = registry.default_entries(models)  # the built-ins, the references, then the models
     rows, _ = engine.evaluate_to(out, names, episodes, {"bench": 1}, workers, False, models, ray)
     return time.perf_counter() - t0, len(rows)
 

@@ -135,3 +135,86 @@ def test_controllers_yaml_unknown_keys_name_the_file(monkeypatch):
         with pytest.raises(ConfigError, match=match):
             settings.read("pid", lambda s: (s.get("integrator_pole_ratio"), s.get("loops")))
     settings._raw.cache_clear()
+
+
+def _fresh(controller, scenario: str):
+    sc = load_scenario(scenario)
+    controller.reset(EpisodeContext(sc, sc.spec, {}))
+    return controller
+
+
+def test_speed_scheduled_is_its_low_loop_at_rest_and_its_high_loop_in_fast_motion():
+    """u = (1 - w)·u_low + w·u_high: at w = 0 (a constant reference) PID's commands, at w = 1 (a ramp
+    faster than speed_high, from its second sample) the LuGre observer's, bit for bit; in between the
+    blend with w = (v - speed_low)/(speed_high - speed_low)."""
+    from frictiongym.agents.classical import LuGreObserver, SpeedScheduled
+    from frictiongym.agents.registry import builtin
+
+    sched = _fresh(SpeedScheduled(builtin), "m220_reversal_tracking")
+    s, h = sched.s, sched.h
+    assert (s.low, s.high) == ("PID", "LuGreObserver") and s.speed_low < s.speed_high
+    rng = np.random.default_rng(0)
+    ys = np.cumsum(rng.normal(0, 1e-3, 200))  # readings (rad)
+
+    def commands(c, refs):
+        return [c.command(y, r) for y, r in zip(ys, refs, strict=True)]
+
+    def run(refs):
+        mine = commands(_fresh(SpeedScheduled(builtin), "m220_reversal_tracking"), refs)
+        lo = commands(_fresh(PID(), "m220_reversal_tracking"), refs)
+        hi = commands(_fresh(LuGreObserver(), "m220_reversal_tracking"), refs)
+        return mine, lo, hi
+
+    mine, lo, _ = run(np.full(200, 0.3))
+    assert mine == lo
+    fast = 1.5 * s.speed_high * h * np.arange(200)
+    mine, lo, hi = run(fast)
+    assert mine[0] == lo[0] and mine[1:] == hi[1:] and lo[1:] != hi[1:]
+    v = 0.5 * (s.speed_low + s.speed_high)
+    mine, lo, hi = run(v * h * np.arange(200))
+    w = (v - s.speed_low) / (s.speed_high - s.speed_low)
+    np.testing.assert_allclose(mine[1:], (1 - w) * np.array(lo[1:]) + w * np.array(hi[1:]), rtol=1e-9)
+
+
+def test_speed_scheduled_holds_a_motions_weight_and_decays_it_over_hold_s():
+    """After a motion at speed v0 stops, the envelope is v0·exp(-t/hold_s): the weight goes back to the
+    low loop once it is below speed_low, at t = hold_s·ln(v0/speed_low)."""
+    from frictiongym.agents.classical import SpeedScheduled
+    from frictiongym.agents.registry import builtin
+
+    c = _fresh(SpeedScheduled(builtin), "m220_reversal_tracking")
+    s, h = c.s, c.h
+    v0 = 2 * s.speed_high
+    for k in range(10):
+        assert c.weight(v0 * h * k) == (0.0 if k == 0 else 1.0)
+    stop = v0 * h * 9
+    t_low = s.hold_s * math.log(v0 / s.speed_low)  # s
+    ws = [c.weight(stop) for _ in range(int(2 * t_low / h))]
+    t = h * np.arange(1, len(ws) + 1)
+    expected = np.clip((v0 * np.exp(-t / s.hold_s) - s.speed_low) / (s.speed_high - s.speed_low), 0, 1)
+    np.testing.assert_allclose(ws, expected, atol=1e-12)
+    assert ws[int(0.9 * t_low / h)] > 0 and ws[int(1.1 * t_low / h)] == 0
+
+
+def test_speed_scheduled_runs_on_a_scheduled_position_loop_only_and_is_pid_at_set_points():
+    from frictiongym.agents import registry
+
+    c = registry.make("SpeedScheduled")
+    assert "no schedule for plant 'kang_robot'" in c.why_not(load_scenario("kang_regulation"))
+    assert "encoder" in c.why_not(load_scenario("flexible_speed_step"))
+    ep = Episode("m220_regulation", 500000, True)  # a constant reference: w = 0 throughout
+    np.testing.assert_equal(run_episode(c, ep).metrics, run_episode(PID(), ep).metrics)  # NaN == NaN
+
+
+def test_speed_scheduled_settings_are_checked_by_name():
+    from frictiongym.agents.classical import SpeedScheduled, SpeedScheduledSettings
+    from frictiongym.agents.classical.scheduled import Schedule
+    from frictiongym.agents.registry import builtin
+
+    bad = SpeedScheduledSettings({"m220": Schedule("PID", "Zero", 0.1, 0.4, 1.0)})
+    with pytest.raises(ConfigError, match=r"speed_scheduled\.m220\.high: Zero is not a loop"):
+        SpeedScheduled(builtin, bad).why_not(load_scenario("m220_regulation"))
+    with pytest.raises(ValueError, match="'PIDD' is not a built-in controller"):
+        SpeedScheduled(builtin, schedules={"m220": Schedule("PIDD", "PID", 0.1, 0.4, 1.0)}).why_not(
+            load_scenario("m220_regulation")
+        )

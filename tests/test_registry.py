@@ -69,3 +69,21 @@ def test_the_default_leaderboard_runs_the_specialists_and_one_generalist_set_per
         assert own and all(why_not(sc) is None for sc in own), name
         plants.add(plant)
     assert plants >= {"kang_robot", "m220", "flexible_servo"}
+
+
+def test_a_residual_base_is_made_by_name_but_never_a_baseline_or_a_default_entry():
+    """registry.BASES: the speed-scheduled blend is no seed's controller, so no default run ranks it and
+    no leaderboard counts it as classical; asked for by name it runs like any controller."""
+    import pytest
+
+    from frictiongym.agents.leaderboard import classical
+
+    assert "SpeedScheduled" in registry.BASES and "SpeedScheduled" not in registry.BUILTIN
+    assert "SpeedScheduled" not in registry.default_entries()
+    assert set(registry.available()) - set(registry.default_entries()) == set(registry.BASES)
+    assert not classical("SpeedScheduled")
+    assert registry.make("SpeedScheduled").name == registry.base_controller("SpeedScheduled").name
+    assert registry.base_controller("PID").name == "PID"
+    for bad in ("Zero", "Ideal", "PIDD"):
+        with pytest.raises(ValueError, match=f"unknown base controller '{bad}'; allowed: .*SpeedScheduled"):
+            registry.base_controller(bad)

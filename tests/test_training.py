@@ -15,7 +15,7 @@ import yaml
 
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("sb3_contrib")
-from conftest import SCENARIO, write_config
+from conftest import HYPER, SCENARIO, write_config
 
 from frictiongym.agents import registry
 from frictiongym.agents.base import EpisodeContext
@@ -511,3 +511,51 @@ def test_bench_training_prints_speed_time_to_beat_and_ratios(tmp_path):
     four = next(r for r in rows if r["setup"] == "four")
     assert int(four["n_envs"]) == 4
     assert "one                      env steps/s   1.00x" in proc.stdout
+
+
+def test_a_residual_over_the_speed_scheduled_base_starts_as_that_base_bit_for_bit():
+    """The M220 generalist's fifth config: a base from registry.BASES (not a baseline) in the loop; its
+    zero-output residual's episode equals the base's own."""
+    (cfg,) = load_config("generalist_sac_m220_sched")
+    assert cfg.base == "SpeedScheduled" and cfg.base not in registry.BUILTIN
+    episode = validation_episodes("m220_reversal_tracking")[0]
+    ref = run_episode(registry.make("SpeedScheduled"), episode, keep_log=True)
+    model = build_model(cfg, make_training_env(cfg, 0), 0, None)
+    c = SB3Policy(model, inputs=cfg.inputs, base=registry.base_controller(cfg.base), alpha=cfg.alpha)
+    got = run_episode(c, episode, keep_log=True)
+    np.testing.assert_equal(got.metrics, ref.metrics)
+    for k in ref.log:
+        np.testing.assert_array_equal(got.log[k], ref.log[k])
+
+
+@pytest.mark.slow
+def test_a_run_over_a_base_that_is_not_a_baseline_records_it_and_loads_through_the_registry(tmp_path):
+    """TrainingRun measures the admissible effort against the base too when the base is no baseline
+    (it runs on the validation episodes beside the classical rows); the manifest names the base, and the
+    exported model loads through the registry with it and acts as its validation row says."""
+    cfg = {
+        "name": "SmokeSched",
+        "algorithm": "SAC",
+        "defaults": {
+            "total_timesteps": 256,
+            "validation": {"every_steps": 128, "episodes": 1, "max_effort_ratio": 100.0},
+            "hyperparams": HYPER["SAC"],
+        },
+        "scenarios": {"m220_reversal_tracking": {"residual": {"base": "SpeedScheduled", "alpha": 0.1}}},
+    }
+    path = tmp_path / "sched.yaml"
+    path.write_text(yaml.safe_dump(cfg))
+    (rc,) = load_config(path)
+    run = TrainingRun(rc, 0, tmp_path / "run", "pytest", progress=False)
+    manifest = run.train(False)
+    assert manifest["base_controller"] == "SpeedScheduled"
+    base_effort = run_episode(registry.make("SpeedScheduled"), validation_episodes(rc.scenario)[0])
+    assert run.effort_ref == min(run.baseline.effort_rms, base_effort.metrics["effort_rms"])
+    folder = export_model(tmp_path / "run", tmp_path / "committed")
+    name = manifest["name"]
+    loaded = registry.make(name, (str(tmp_path / "committed"),))
+    assert loaded.base is not None and loaded.base.name == "SpeedScheduled"
+    got = run_episode(loaded, validation_episodes(rc.scenario)[0])
+    assert got.metrics[load_scenario(rc.scenario).main_metric] == pytest.approx(
+        manifest["validation"]["value"], rel=1e-12
+    ), folder

@@ -1,12 +1,14 @@
 """Classical baselines, one module per family: PD/PID and a plant's own lab PD (pid.py), Southward and
 RDFC (southward_rdfc.py), state feedback + observer with relay / high-gain compensation
 (state_feedback.py), LuGre-observer compensation (lugre_observer.py) and Coulomb + viscous feed-forward
-(feedforward.py). Each family's settings object reads its defaults from configs/controllers.yaml once;
+(feedforward.py); and, not a baseline, a speed-scheduled blend of two of them as a residual base
+(scheduled.py). Each family's settings object reads its defaults from configs/controllers.yaml once;
 constructor arguments override."""
 
 from .feedforward import CoulombViscousFF
 from .lugre_observer import LuGreObserver, LuGreObserverSettings
 from .pid import PD, PID, LabPD, PIDSettings, design_pid
+from .scheduled import SpeedScheduled, SpeedScheduledSettings
 from .southward_rdfc import RDFC, RDFCSettings, Southward, SouthwardSettings
 from .state_feedback import StateFeedback, StateFeedbackSettings
 
@@ -22,6 +24,8 @@ __all__ = [
     "RDFCSettings",
     "Southward",
     "SouthwardSettings",
+    "SpeedScheduled",
+    "SpeedScheduledSettings",
     "StateFeedback",
     "StateFeedbackSettings",
     "design_pid",

@@ -51,8 +51,7 @@ def run(
 
     matplotlib.use("Agg")
 
-    available = registry.available(models)
-    names = controllers or list(available)
+    names = controllers or registry.default_entries(models)
     names = [ZERO, *(n for n in names if n != ZERO)]
     structures, left_out = runnable_structures(scenario, structures)
     episodes, rejected = plan(scenario, seeds, points, joint, structures)

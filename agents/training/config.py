@@ -25,12 +25,11 @@ from frictiongym.envs.plants.spec import RANDOMIZATION_KEYS
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.step import REWARD_WEIGHTS
 
-from ..base import ZERO
 from ..learned import (
     PolicyInputs,
     algorithm_class,
 )
-from ..registry import BUILTIN
+from ..registry import base_controller
 
 VALIDATION_SUITE = "validation"
 ASYMMETRIC = ("SAC", "TD3", "TQC", "CrossQ")  # the privileged critic (agents/asymmetric.py)
@@ -166,8 +165,11 @@ def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) 
     o = c.section("observation")
     res = c.section("residual")
     base = res["base"]
-    if base is not None and (base not in BUILTIN or base == ZERO):
-        raise res.error("base", f"unknown base controller {base!r}; allowed: {sorted(set(BUILTIN) - {ZERO})}")
+    if base is not None:
+        try:
+            base_controller(base)
+        except ValueError as e:
+            raise res.error("base", str(e)) from None
     inputs = PolicyInputs(
         o.integer("history", 0, 64),
         o.boolean("privileged_critic"),

@@ -24,7 +24,7 @@ from ..learned import (
     policy_observation,
     residual_action,
 )
-from ..registry import make
+from ..registry import base_controller
 from ..settings import knowledge_defaults
 from .config import RunConfig, scenario_overrides
 from .vec_env import TrainingVecEnv
@@ -70,7 +70,7 @@ def training_env_kwargs(cfg: RunConfig) -> dict[str, Any]:
     controller's hardware and the model's observation blocks (as the trained controller's evaluation
     env gets them). Checks that the base applies to the scenario."""
 
-    base = make(cfg.base) if cfg.base is not None else None
+    base = base_controller(cfg.base) if cfg.base is not None else None
     sc = load_scenario(cfg.scenario, scenario_overrides(cfg) or None, randomize=cfg.randomize)
     if base is not None and (reason := base.why_not(sc)) is not None:
         raise ConfigError(
@@ -84,7 +84,7 @@ def make_training_env(cfg: RunConfig, seed: int, nthread: int = 1) -> TrainingVe
     """The n_envs training envs of run seed `seed` on the batched core, each env's own base controller in
     the loop (agents/training/vec_env.py)."""
 
-    bases = (lambda: make(cfg.base)) if cfg.base is not None else None
+    bases = (lambda: base_controller(cfg.base)) if cfg.base is not None else None
     kw = training_env_kwargs(cfg)
     return TrainingVecEnv(
         cfg.scenario,

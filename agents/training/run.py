@@ -34,6 +34,7 @@ from ..learned import (
     algorithm_class,
 )
 from ..manifest import MANIFEST, MODEL, NORMALIZER, Manifest
+from ..registry import base_controller
 from .config import VALIDATION_SUITE, RunConfig
 from .env import make_training_env
 from .model import build_model
@@ -43,6 +44,7 @@ from .validation import (
     Snapshot,
     best_classical,
     classical_rows,
+    evaluate_controller,
     evaluate_snapshot,
     gradient_steps,
     means,
@@ -255,9 +257,13 @@ class TrainingRun:
         classical = by_scenario[cfg.scenario]
         self.baseline, self.zero = self.baselines[cfg.scenario], classical[ZERO]
         # admissible effort: relative to the best baseline, and to the base controller in residual mode
-        self.effort_ref = min(
-            self.baseline.effort_rms, classical[cfg.base]["effort_rms"] if cfg.base else math.inf
-        )
+        base_effort = math.inf
+        if cfg.base is not None:
+            base = classical.get(cfg.base) or evaluate_controller(
+                base_controller(cfg.base), self.groups[cfg.scenario], self.envs
+            )  # a base that is not a baseline (registry.BASES) runs here on the same episodes
+            base_effort = base["effort_rms"]
+        self.effort_ref = min(self.baseline.effort_rms, base_effort)
         (out / "monitor").mkdir(exist_ok=True)
         venv: Any = VecMonitor(make_training_env(cfg, self.seed), str(out / "monitor"))
         gamma = cfg.hyperparams.get("gamma", 0.99)

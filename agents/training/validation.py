@@ -30,7 +30,7 @@ from ..learned import (
     algorithm_class,
 )
 from ..manifest import MODEL, NORMALIZER
-from ..registry import BUILTIN, make
+from ..registry import BUILTIN, base_controller
 from .config import VALIDATION_SUITE, RunConfig
 
 
@@ -153,7 +153,7 @@ def evaluate_snapshot(
     with _generators_kept():
         model = algorithm_class(cfg.algorithm).load(io.BytesIO(snap.model), device="cpu")
         norm = pickle.loads(snap.normalizer) if snap.normalizer is not None else None
-        base = make(cfg.base) if cfg.base is not None else None
+        base = base_controller(cfg.base) if cfg.base is not None else None
         plants = (load_scenario(cfg.scenario).spec.name,)
         policy = SB3Policy(
             model, plants, name, inputs=cfg.inputs, base=base, alpha=cfg.alpha, normalizer=norm
