@@ -49,7 +49,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--seeds", type=seed_range, help="seeds of the inline suite, e.g. 5000-5049")
     ap.add_argument("--randomize", action="store_true", help="randomise the inline suite's episodes")
-    ap.add_argument("--controllers", nargs="+", help="default: all (built-in, plug-ins and --models)")
+    ap.add_argument(
+        "--controllers",
+        nargs="+",
+        help="default: all (built-in, plug-ins and --models); a residual base that is no baseline "
+        "(SpeedScheduled) runs only when named",
+    )
     ap.add_argument(
         "--models",
         nargs="*",

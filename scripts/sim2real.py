@@ -36,7 +36,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--models", nargs="*", type=Path, help="saved-model folders (default: the committed ones)"
     )
-    ap.add_argument("--controllers", nargs="+", help="default: every applicable controller and model")
+    ap.add_argument(
+        "--controllers",
+        nargs="+",
+        help="default: every applicable controller and model (a residual base only when named)",
+    )
     ap.add_argument("--seeds", type=int, default=10, help="episodes per shift value (default 10)")
     ap.add_argument("--points", type=int, default=5, help="shift values per axis (default 5)")
     ap.add_argument("--joint", type=int, default=20, help="joint-shift draws per set (default 20)")
