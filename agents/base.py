@@ -130,6 +130,11 @@ class PhysicalController(Controller):
     def start(self, ctx: EpisodeContext) -> None:
         """Episode start in physical terms (override)."""
 
+    def authority(self, share: float) -> None:
+        """This sample's share (0-1) of the applied command, told before command() by a loop that blends
+        this one's output with another's. A loop with an integrator integrates only its share, so that it
+        does not wind up while the other loop commands (bumpless transfer); others ignore it."""
+
     def act(self, obs: np.ndarray) -> np.ndarray:
         d = decode_observation(self.sc, obs, trusted=True)  # the env's own observation
         u = self.command(d["sensors"][self.sensor], d["reference"])

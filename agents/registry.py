@@ -33,6 +33,7 @@ from .classical import (
     LuGreObserver,
     Southward,
     SpeedScheduled,
+    SpeedScheduledBumpless,
     StateFeedback,
 )
 from .learned import SB3Policy, policy_why_not
@@ -67,6 +68,7 @@ def builtin(name: str) -> Controller:
 # leaderboard runs one when asked for it, as an entry), never in a default run or a baseline.
 BASES: dict[str, Callable[[], Controller]] = {
     "SpeedScheduled": partial(SpeedScheduled, builtin),
+    "SpeedScheduledBumpless": partial(SpeedScheduledBumpless, builtin),
 }
 
 

@@ -79,6 +79,7 @@ def attach_scores(results: Sequence[EpisodeResult], scoring: dict[str, Scoring])
     """Fill in each result's score = 1 - m / m_Zero and g, the friction penalty removed (limit_score)
     between the scenario's uncompensated loop and the Ideal row, on the main metric m and the same
     episode's reference rows (nan where a reference did not run)."""
+
     def metric(r: EpisodeResult) -> float:
         return r.metrics[scoring[r.scenario].main_metric]
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from frictiongym.agents import leaderboard
 from frictiongym.agents.engine import RunMismatch, add_backend_arguments, backend_of, run_interruptibly
-from frictiongym.agents.registry import LEADERBOARD_GROUPS, committed_models
+from frictiongym.agents.registry import BASES, LEADERBOARD_GROUPS, committed_models
 from frictiongym.envs.scenario import scenario_names
 from frictiongym.envs.suites import Episode, suite_names
 
@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
         "--controllers",
         nargs="+",
         help="default: all (built-in, plug-ins and --models); a residual base that is no baseline "
-        "(SpeedScheduled) runs only when named",
+        f"({', '.join(BASES)}) runs only when named",
     )
     ap.add_argument(
         "--models",

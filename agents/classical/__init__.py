@@ -8,7 +8,7 @@ constructor arguments override."""
 from .feedforward import CoulombViscousFF
 from .lugre_observer import LuGreObserver, LuGreObserverSettings
 from .pid import PD, PID, LabPD, PIDSettings, design_pid
-from .scheduled import SpeedScheduled, SpeedScheduledSettings
+from .scheduled import SpeedScheduled, SpeedScheduledBumpless, SpeedScheduledSettings
 from .southward_rdfc import RDFC, RDFCSettings, Southward, SouthwardSettings
 from .state_feedback import StateFeedback, StateFeedbackSettings
 
@@ -25,6 +25,7 @@ __all__ = [
     "Southward",
     "SouthwardSettings",
     "SpeedScheduled",
+    "SpeedScheduledBumpless",
     "SpeedScheduledSettings",
     "StateFeedback",
     "StateFeedbackSettings",

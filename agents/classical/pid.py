@@ -122,7 +122,8 @@ class PID(PhysicalController):
     """u = kp·e + ki·∫e + kd·d(-y)/dt, e = r - y: derivative on the measurement (no set-point kick),
     backward differences at T_s (or, on a plant whose loop is its lab controller, the lab's velocity
     FIR: EMPS §2.2's 2-tap average, i.e. (y(k) - y(k-2))/(2 T_s)); conditional-integration anti-windup
-    (the integrator holds while the command is saturated and the error would push it further)."""
+    (the integrator holds while the command is saturated and the error would push it further). In a
+    blend (authority(share)) it integrates share·e: only its part of the applied command."""
 
     name: ClassVar[str] = "PID"
     integral: ClassVar[bool] = True
@@ -135,6 +136,10 @@ class PID(PhysicalController):
         lab = self.settings.loop(ctx.plant).lab_controller
         self.fir = ctx.plant.document.lab_fir if lab else None
         self.i_term, self.y_prev, self.qf_prev = 0.0, None, None
+        self.share = 1.0
+
+    def authority(self, share: float) -> None:
+        self.share = share
 
     def loop_velocity(self, y: float) -> float:
         """The loop's velocity estimate (units/s) from this reading and the previous ones."""
@@ -153,7 +158,7 @@ class PID(PhysicalController):
         self.y_prev = y
         u = g.kp * e + self.i_term + g.kd * d
         if abs(u) < limit or u * e < 0:
-            self.i_term += g.ki * e * h
+            self.i_term += self.share * g.ki * e * h  # 1.0·x is x: alone, bit for bit
         return max(-limit, min(limit, u))
 
     def params(self) -> dict[str, Any]:

@@ -143,9 +143,7 @@ def plan(
     return episodes, rejected
 
 
-def condition(
-    e: Episode | EpisodeResult, ranges: dict[str, tuple[float, float]]
-) -> tuple[str, float | str]:
+def condition(e: Episode | EpisodeResult, ranges: dict[str, tuple[float, float]]) -> tuple[str, float | str]:
     """(axis or joint set, shift value; for the structural axis the structure's name) of an episode or of
     a result on one."""
 
