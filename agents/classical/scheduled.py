@@ -11,16 +11,16 @@ moment of its reversal (where the reference speed passes through zero) and a hol
 loop within a few hold_s.
 
 SpeedScheduled has no bumpless transfer: neither loop is told its share of the applied command, so PID's
-integrator keeps integrating the error while the observer (a PD loop on a position drive) commands, and
-hands it back as w falls. The committed M220 generalists GenSAC-sched-* were trained over it as it is, so it
-stays. SpeedScheduledBumpless tells each loop its share before it computes (authority(1 - w), authority(w)),
-and PID integrates only share·e. Measured on the validation suite (10 episodes, 500000-500009), against
+integrator keeps integrating the error while the observer (a PD loop on a position drive) commands, and hands
+it back as w falls (the fifth M220 generalist set was trained over it; docs/training.md keeps its figures).
+SpeedScheduledBumpless tells each loop its share before it computes (authority(1 - w), authority(w)), and PID
+integrates only share·e. Measured on the validation suite (10 episodes, 500000-500009), against
 SpeedScheduled: 0.2 Hz reversal peak 0.0087 rad against 0.0157, jittered reversals 0.0139 against 0.0205,
 drifting friction 0.0092 against 0.0161, point-to-point IAE 0.234 against 0.236, random references 0.419
-against 0.425, set-points and 0.05 Hz reversals unchanged (PID's), at the same or lower effort. The
-textbook alternative, back-calculation (the low loop's integrator made to track the applied command), was
-worse than no transfer (0.035 rad at the 0.2 Hz reversals): it stores the observer's friction compensation
-in PID's integrator and hands it back at the next standstill.
+against 0.425, set-points and 0.05 Hz reversals unchanged (PID's), at the same or lower effort. The textbook
+alternative, back-calculation (the low loop's integrator made to track the applied command), was worse than no
+transfer (0.035 rad at the 0.2 Hz reversals): it stores the observer's friction compensation in PID's
+integrator and hands it back at the next standstill.
 """
 
 from __future__ import annotations
