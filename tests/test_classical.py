@@ -245,7 +245,7 @@ def test_the_bumpless_schedule_holds_the_low_loops_integral_while_the_high_loop_
     assert bumpless.low.i_term == held and plain.low.i_term != held
 
 
-def test_the_bumpless_schedule_halves_the_reversal_peak_on_a_validation_episode():
+def test_the_bumpless_schedule_cuts_the_reversal_peak_on_a_validation_episode():
     """What the transfer is for (scheduled.py's docstring, 10 episodes: 0.0087 against 0.0157 rad): on
     the first validation episode of the 0.2 Hz reversals PID no longer hands back an integral wound up
     under the observer, so the peak error at the reversals is lower at no more effort."""
