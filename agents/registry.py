@@ -34,6 +34,7 @@ from .classical import (
     Southward,
     SpeedScheduled,
     SpeedScheduledBumpless,
+    SpeedScheduledFiltered,
     StateFeedback,
 )
 from .learned import SB3Policy, policy_why_not
@@ -69,6 +70,7 @@ def builtin(name: str) -> Controller:
 BASES: dict[str, Callable[[], Controller]] = {
     "SpeedScheduled": partial(SpeedScheduled, builtin),
     "SpeedScheduledBumpless": partial(SpeedScheduledBumpless, builtin),
+    "SpeedScheduledFiltered": partial(SpeedScheduledFiltered, builtin),
 }
 
 

@@ -112,6 +112,39 @@ def test_lugre_observer_estimate_converges_to_the_sliding_friction():
     assert pytest.approx(-c.p.steady_state(v) + c.p.bias, rel=1e-6) == F
 
 
+def test_lugre_observer_update_keeps_its_state_at_vanishing_speeds():
+    """At a velocity far below an encoder count per period (as a filtered velocity decays to) the observer's
+    update tends to ẑ + (v - k e)·h; the exact form drive/a + (ẑ - drive/a)·e^{-ah} would lose ẑ in the
+    rounding of drive/a (about 1e290 here)."""
+    from frictiongym.agents.classical import LuGreObserver
+
+    c = LuGreObserver()
+    sc = load_scenario("m220_reversal_tracking")
+    c.reset(EpisodeContext(sc, sc.spec, {}))
+    c.z = 1e-3
+    c.friction_estimate(1e-290, 1e-2)
+    assert c.z == pytest.approx(1e-3 - c.k_obs * 1e-2 * c.h, rel=1e-12)
+
+
+def test_lugre_observer_velocity_filter_is_a_first_order_lag_and_off_for_the_baseline():
+    """velocity_filter_s = τ: the observer runs on v_f, starting at the first velocity and moving by
+    1 - e^{-h/τ} of the gap each period; the baseline (controllers.yaml: 0) runs on the raw difference."""
+    from frictiongym.agents.classical import LuGreObserver
+
+    sc = load_scenario("m220_reversal_tracking")
+    raw, filt = LuGreObserver(), LuGreObserver(velocity_filter_s=0.01)
+    for c in (raw, filt):
+        c.reset(EpisodeContext(sc, sc.spec, {}))
+    assert raw.observer.velocity_filter_s == 0.0
+    h = raw.h
+    assert raw.velocity(0.0, None) == filt.velocity(0.0, None) == 0.0
+    assert raw.velocity(1e-3, 0.0) == pytest.approx(0.2)
+    assert filt.velocity(1e-3, 0.0) == pytest.approx(0.2 * (1 - math.exp(-h / 0.01)))
+    for _ in range(round(0.1 / h)):  # ten time constants at a steady 0.2 rad/s
+        v = filt.velocity(1e-3, 0.0)
+    assert v == pytest.approx(0.2, rel=1e-4)
+
+
 def test_coulomb_viscous_feedforward_reduces_reversal_errors():
     from frictiongym.agents.classical import CoulombViscousFF
 
@@ -257,6 +290,43 @@ def test_the_bumpless_schedule_cuts_the_reversal_peak_on_a_validation_episode():
     )
     assert bumpless["reversal_peak_error"] < 0.75 * plain["reversal_peak_error"]
     assert bumpless["effort_rms"] <= plain["effort_rms"]
+
+
+def test_the_filtered_schedule_cuts_the_jittered_reversals_effort_on_a_validation_episode():
+    """What the velocity filter is for (controllers.yaml speed_scheduled_filtered): under the jittered
+    scenario's encoder noise the observer's velocity (an encoder difference) carries the noise into the
+    command; filtered, the effort on the first validation episode falls by more than a quarter and the
+    reversal peak error does not grow."""
+    from frictiongym.agents import registry
+
+    ep = Episode("m220_reversal_tracking_hard", 500000, True)
+    bumpless, filtered = (
+        run_episode(registry.make(n), ep).metrics
+        for n in ("SpeedScheduledBumpless", "SpeedScheduledFiltered")
+    )
+    assert filtered["effort_rms"] < 0.75 * bumpless["effort_rms"]
+    assert filtered["reversal_peak_error"] <= bumpless["reversal_peak_error"]
+
+
+def test_the_filtered_schedule_filters_only_its_observer_and_names_bad_settings():
+    from frictiongym.agents.classical import (
+        ObserverFilterSettings,
+        SpeedScheduledFiltered,
+        SpeedScheduledSettings,
+    )
+    from frictiongym.agents.classical.scheduled import Schedule
+    from frictiongym.agents.registry import builtin
+
+    c = _fresh(SpeedScheduledFiltered(builtin), "m220_reversal_tracking")
+    tau = ObserverFilterSettings.defaults().velocity_filter_s["m220"]
+    assert c.high.observer.velocity_filter_s == tau > 0
+    assert builtin("LuGreObserver").observer.velocity_filter_s == 0.0  # the baseline keeps none
+    sc = load_scenario("m220_regulation")
+    none = SpeedScheduledFiltered(builtin, filtering=ObserverFilterSettings({}))
+    assert "no velocity filter for plant 'm220'" in none.why_not(sc)
+    pid_high = SpeedScheduledSettings({"m220": Schedule("PID", "PID", 0.1, 0.4, 1.0)})
+    with pytest.raises(ConfigError, match=r"speed_scheduled\.m220\.high: PID is not a LuGre observer"):
+        SpeedScheduledFiltered(builtin, pid_high).why_not(sc)
 
 
 def test_speed_scheduled_settings_are_checked_by_name():

@@ -78,7 +78,7 @@ def test_a_residual_base_is_made_by_name_but_never_a_baseline_or_a_default_entry
 
     from frictiongym.agents.leaderboard import classical
 
-    assert {"SpeedScheduled", "SpeedScheduledBumpless"} <= set(registry.BASES)
+    assert {"SpeedScheduled", "SpeedScheduledBumpless", "SpeedScheduledFiltered"} <= set(registry.BASES)
     assert set(registry.available()) - set(registry.default_entries()) == set(registry.BASES)
     for name in registry.BASES:
         assert name not in registry.BUILTIN and name not in registry.default_entries()

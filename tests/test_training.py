@@ -513,13 +513,20 @@ def test_bench_training_prints_speed_time_to_beat_and_ratios(tmp_path):
     assert "one                      env steps/s   1.00x" in proc.stdout
 
 
-def test_a_residual_over_the_speed_scheduled_base_starts_as_that_base_bit_for_bit():
-    """The M220 generalist's fifth config: a base from registry.BASES (not a baseline) in the loop; its
-    zero-output residual's episode equals the base's own."""
-    (cfg,) = load_config("generalist_sac_m220_sched")
-    assert cfg.base == "SpeedScheduled" and cfg.base not in registry.BUILTIN
-    episode = validation_episodes("m220_reversal_tracking")[0]
-    ref = run_episode(registry.make("SpeedScheduled"), episode, keep_log=True)
+@pytest.mark.parametrize(
+    "config, base",
+    [
+        ("generalist_sac_m220_sched", "SpeedScheduled"),
+        ("generalist_sac_m220_filtered", "SpeedScheduledFiltered"),
+    ],
+)
+def test_a_residual_over_the_speed_scheduled_base_starts_as_that_base_bit_for_bit(config, base):
+    """The M220 generalist's fifth and seventh configs: a base from registry.BASES (not a baseline) in the
+    loop; its zero-output residual's episode equals the base's own."""
+    (cfg,) = load_config(config)
+    assert cfg.base == base and cfg.base not in registry.BUILTIN
+    episode = validation_episodes("m220_reversal_tracking_hard")[0]
+    ref = run_episode(registry.make(base), episode, keep_log=True)
     model = build_model(cfg, make_training_env(cfg, 0), 0, None)
     c = SB3Policy(model, inputs=cfg.inputs, base=registry.base_controller(cfg.base), alpha=cfg.alpha)
     got = run_episode(c, episode, keep_log=True)

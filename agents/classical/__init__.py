@@ -8,7 +8,13 @@ constructor arguments override."""
 from .feedforward import CoulombViscousFF
 from .lugre_observer import LuGreObserver, LuGreObserverSettings
 from .pid import PD, PID, LabPD, PIDSettings, design_pid
-from .scheduled import SpeedScheduled, SpeedScheduledBumpless, SpeedScheduledSettings
+from .scheduled import (
+    ObserverFilterSettings,
+    SpeedScheduled,
+    SpeedScheduledBumpless,
+    SpeedScheduledFiltered,
+    SpeedScheduledSettings,
+)
 from .southward_rdfc import RDFC, RDFCSettings, Southward, SouthwardSettings
 from .state_feedback import StateFeedback, StateFeedbackSettings
 
@@ -20,12 +26,14 @@ __all__ = [
     "LabPD",
     "LuGreObserver",
     "LuGreObserverSettings",
+    "ObserverFilterSettings",
     "PIDSettings",
     "RDFCSettings",
     "Southward",
     "SouthwardSettings",
     "SpeedScheduled",
     "SpeedScheduledBumpless",
+    "SpeedScheduledFiltered",
     "SpeedScheduledSettings",
     "StateFeedback",
     "StateFeedbackSettings",

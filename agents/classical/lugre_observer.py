@@ -17,21 +17,32 @@ from .. import settings as cfg
 from ..base import EpisodeContext, drive_friction_reason
 from .pid import PID, PIDSettings
 
+# Below this a·h the observer's exact update drive/a + (ẑ - drive/a)·e^{-ah} loses ẑ in the rounding of
+# drive/a (a filtered velocity decays through values small enough for drive/a ~ 1e300: ẑ jumped, measured),
+# so there it is computed in expm1 form. Unfiltered, an encoder's velocity is 0 or at least a count per
+# period and never comes near it: the baseline's updates are bit for bit the exact form's.
+SMALL_DECAY = 1e-6
+
 
 @dataclass(frozen=True)
 class LuGreObserverSettings(cfg.FamilySettings):
     """observer_gain: k per plant preset, coupling the loop error into the observer (rad/s per rad, or
-    per V·s/rad for a speed loop); the trade-off measured is in controllers.yaml."""
+    per V·s/rad for a speed loop); the trade-off measured is in controllers.yaml. velocity_filter_s: time
+    constant (s) of a first-order filter on the measured velocity the observer runs on; 0 (the baseline's)
+    is none."""
 
     SECTION: ClassVar[str] = "lugre_observer"
     observer_gain: Mapping[str, float]
+    velocity_filter_s: float
 
     @classmethod
     @cache
     def defaults(cls) -> LuGreObserverSettings:
         def build(s: Node) -> LuGreObserverSettings:
             g = s.section("observer_gain")
-            return cls({plant: g.nonneg(plant, 1e6) for plant in list(g.keys())})
+            return cls(
+                {plant: g.nonneg(plant, 1e6) for plant in list(g.keys())}, s.nonneg("velocity_filter_s", 1.0)
+            )
 
         return cfg.read(cls.SECTION, build)
 
@@ -39,7 +50,8 @@ class LuGreObserverSettings(cfg.FamilySettings):
 class LuGreObserver(PID):
     """u = u_fb + (F̂ - b)/k_act: F̂ from the observer ẑ(k+1) = v/a + (ẑ - v/a)·e^{-a h}, a = σ0|v|/g(v)
     (exact for v held over the period; ẑ += v h at v = 0), with v the measured drive velocity (encoder
-    difference or tachometer). PD for a position loop, PI for a speed loop."""
+    difference or tachometer), low-pass filtered when velocity_filter_s > 0 (v_f += (1 - e^{-h/τ})(v - v_f),
+    from v_f = v at the first reading). PD for a position loop, PI for a speed loop."""
 
     name: ClassVar[str] = "LuGreObserver"
 
@@ -67,11 +79,22 @@ class LuGreObserver(PID):
         self.k_obs = gains[spec.name]
         self.z = 0.0
         self.k_speed = spec.sensors[self.sc.tracked_sensor].gain if self.speed_loop else 1.0
+        tau = self.observer.velocity_filter_s
+        self.v_gain = 1.0 - math.exp(-self.h / tau) if tau > 0 else None
+        self.v_f: float | None = None
 
     def velocity(self, y: float, y_prev: float | None) -> float:
+        """The velocity the observer runs on (rad/s): measured, then filtered if asked."""
         if self.speed_loop:
-            return y / self.k_speed
-        return 0.0 if y_prev is None else (y - y_prev) / self.h
+            v = y / self.k_speed
+        elif y_prev is None:
+            v = 0.0
+        else:
+            v = (y - y_prev) / self.h
+        if self.v_gain is None:
+            return v
+        self.v_f = v if self.v_f is None else self.v_f + self.v_gain * (v - self.v_f)
+        return self.v_f
 
     def friction_estimate(self, v: float, e: float) -> float:
         """F̂ (N·m, opposing motion) and the observer update over one period."""
@@ -81,7 +104,12 @@ class LuGreObserver(PID):
         # 17 for the flexible servo's motor at 40 ms (it destabilised the loop, measured); σ0 ẑ + σ2 v remain
         F = p.sigma0 * self.z + p.sigma2 * v
         drive = v - self.k_obs * e
-        self.z = drive / a + (self.z - drive / a) * math.exp(-a * h) if a > 0 else self.z + drive * h
+        ah = a * h
+        if ah >= SMALL_DECAY:  # exact for v held over the period
+            self.z = drive / a + (self.z - drive / a) * math.exp(-ah)
+        else:  # the same update as ẑ + drive·h·(1 - e^{-ah})/(ah), which tends to ẑ + drive·h as a → 0
+            self.z = self.z * math.exp(-ah) - drive * h * (math.expm1(-ah) / ah if ah > 0 else -1.0)
+        return F
         return F
 
     def command(self, y: float, r: float) -> float:
@@ -94,4 +122,8 @@ class LuGreObserver(PID):
         return max(-limit, min(limit, u_fb + comp))
 
     def params(self) -> dict[str, Any]:
-        return {**super().params(), "observer_gain": getattr(self, "k_obs", None)}
+        return {
+            **super().params(),
+            "observer_gain": getattr(self, "k_obs", None),
+            "velocity_filter_s": self.observer.velocity_filter_s,
+        }
