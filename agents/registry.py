@@ -31,6 +31,7 @@ from .classical import (
     CoulombViscousFF,
     LabPD,
     LuGreObserver,
+    PIDCoulombViscousFF,
     Southward,
     SpeedScheduled,
     SpeedScheduledBumpless,
@@ -55,6 +56,7 @@ BUILTIN: dict[str, Callable[[], Controller]] = {
     "SF+highgain": partial(StateFeedback, "highgain"),
     "LuGreObserver": LuGreObserver,
     "CoulombViscousFF": CoulombViscousFF,
+    "PID+FF": PIDCoulombViscousFF,
 }
 
 

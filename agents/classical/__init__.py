@@ -1,11 +1,11 @@
 """Classical baselines, one module per family: PD/PID and a plant's own lab PD (pid.py), Southward and
 RDFC (southward_rdfc.py), state feedback + observer with relay / high-gain compensation
 (state_feedback.py), LuGre-observer compensation (lugre_observer.py) and Coulomb + viscous feed-forward
-(feedforward.py); and, not a baseline, a speed-scheduled blend of two of them as a residual base
-(scheduled.py). Each family's settings object reads its defaults from configs/controllers.yaml once;
-constructor arguments override."""
+on the PD or the PID loop (feedforward.py); and, not a baseline, a speed-scheduled blend of two of them
+as a residual base (scheduled.py). Each family's settings object reads its defaults from
+configs/controllers.yaml once; constructor arguments override."""
 
-from .feedforward import CoulombViscousFF
+from .feedforward import CoulombViscousFF, PIDCoulombViscousFF
 from .lugre_observer import LuGreObserver, LuGreObserverSettings
 from .pid import PD, PID, LabPD, PIDSettings, design_pid
 from .scheduled import (
@@ -27,6 +27,7 @@ __all__ = [
     "LuGreObserver",
     "LuGreObserverSettings",
     "ObserverFilterSettings",
+    "PIDCoulombViscousFF",
     "PIDSettings",
     "RDFCSettings",
     "Southward",

@@ -1,5 +1,6 @@
 """Coulomb + viscous friction feed-forward from identified parameters (seed 000 §2.3 for the M220) on top
-of the PD position loop of pid.py, for tracking a previewed reference."""
+of the PD position loop of pid.py (`CoulombViscousFF`) or of its PID loop (`PIDCoulombViscousFF`), for
+tracking a previewed reference."""
 
 from __future__ import annotations
 
@@ -40,3 +41,13 @@ class CoulombViscousFF(PID):
         ff = (lv["coulomb_pos"] if vr > 0 else -lv["coulomb_neg"] if vr < 0 else 0.0) + self.p.sigma2 * vr
         limit = self.sc.action_scale
         return max(-limit, min(limit, u_fb + ff / self.ctx.plant.actuator_gain))
+
+
+class PIDCoulombViscousFF(CoulombViscousFF):
+    """The same feed-forward on the PID loop of pid.py: the integrator removes what the identified levels
+    miss (a drawn friction scale, asymmetry, drift) and the feed-forward takes the Coulomb step at a
+    reversal off the integrator, which otherwise has to wind through it. The integrator's anti-windup
+    sees the feedback part of the command (pid.PID.command)."""
+
+    name: ClassVar[str] = "PID+FF"
+    integral: ClassVar[bool] = True
