@@ -37,6 +37,7 @@ from .classical import (
     SpeedScheduledBumpless,
     SpeedScheduledFiltered,
     StateFeedback,
+    TaskScheduled,
 )
 from .learned import SB3Policy, policy_why_not
 from .limits import Ideal, Oracle
@@ -73,6 +74,7 @@ BASES: dict[str, Callable[[], Controller]] = {
     "SpeedScheduled": partial(SpeedScheduled, builtin),
     "SpeedScheduledBumpless": partial(SpeedScheduledBumpless, builtin),
     "SpeedScheduledFiltered": partial(SpeedScheduledFiltered, builtin),
+    "TaskScheduled": partial(TaskScheduled, builtin),
 }
 
 

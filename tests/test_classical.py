@@ -358,3 +358,37 @@ def test_speed_scheduled_settings_are_checked_by_name():
         SpeedScheduled(builtin, schedules={"m220": Schedule("PIDD", "PID", 0.1, 0.4, 1.0)}).why_not(
             load_scenario("m220_regulation")
         )
+
+
+def test_the_task_schedule_runs_its_tasks_loop_alone_bit_for_bit():
+    """TaskScheduled (controllers.yaml task_scheduled) on Kang's rotor: PID+FF's episode on a tracking
+    scenario and PID's at a set-point, metrics equal to the last bit; PID+FF itself is refused at the
+    set-point (tracking only), and a plant without a schedule is named."""
+    from frictiongym.agents.classical import PIDCoulombViscousFF
+
+    c = registry.make("TaskScheduled")
+    assert "no schedule for plant 'm220'" in c.why_not(load_scenario("m220_random"))
+    assert PIDCoulombViscousFF().why_not(load_scenario("kang_regulation")) is not None
+    for scenario, alone in (("kang_random", PIDCoulombViscousFF()), ("kang_regulation", PID())):
+        ep = Episode(scenario, 500000, True)
+        assert c.why_not(load_scenario(scenario)) is None
+        mine, theirs = run_episode(c, ep), run_episode(alone, ep)
+        assert c.params()["loop"] == alone.name
+        np.testing.assert_equal(mine.metrics, theirs.metrics)
+
+
+def test_the_task_schedule_refuses_an_unknown_task_by_name(monkeypatch):
+    from frictiongym.agents import settings
+    from frictiongym.agents.classical import TaskScheduledSettings
+
+    raw = settings._raw()
+    bad = {**raw, "task_scheduled": {"kang_robot": {"tracking": "PID+FF", "setpoint": "PID"}}}
+    monkeypatch.setattr(settings, "load_yaml", lambda *_a, **_k: bad)
+    settings._raw.cache_clear()
+    TaskScheduledSettings.defaults.cache_clear()
+    try:
+        with pytest.raises(ConfigError, match=r"task_scheduled\.kang_robot\.setpoint: not a task"):
+            TaskScheduledSettings.defaults()
+    finally:
+        settings._raw.cache_clear()
+        TaskScheduledSettings.defaults.cache_clear()

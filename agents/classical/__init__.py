@@ -1,8 +1,8 @@
 """Classical baselines, one module per family: PD/PID and a plant's own lab PD (pid.py), Southward and
 RDFC (southward_rdfc.py), state feedback + observer with relay / high-gain compensation
 (state_feedback.py), LuGre-observer compensation (lugre_observer.py) and Coulomb + viscous feed-forward
-on the PD or the PID loop (feedforward.py); and, not a baseline, a speed-scheduled blend of two of them
-as a residual base (scheduled.py). Each family's settings object reads its defaults from
+on the PD or the PID loop (feedforward.py); and, not baselines, residual bases scheduled over them by the
+reference's speed or by the task (scheduled.py). Each family's settings object reads its defaults from
 configs/controllers.yaml once; constructor arguments override."""
 
 from .feedforward import CoulombViscousFF, PIDCoulombViscousFF
@@ -14,6 +14,8 @@ from .scheduled import (
     SpeedScheduledBumpless,
     SpeedScheduledFiltered,
     SpeedScheduledSettings,
+    TaskScheduled,
+    TaskScheduledSettings,
 )
 from .southward_rdfc import RDFC, RDFCSettings, Southward, SouthwardSettings
 from .state_feedback import StateFeedback, StateFeedbackSettings
@@ -38,5 +40,7 @@ __all__ = [
     "SpeedScheduledSettings",
     "StateFeedback",
     "StateFeedbackSettings",
+    "TaskScheduled",
+    "TaskScheduledSettings",
     "design_pid",
 ]

@@ -44,6 +44,8 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any, ClassVar
 
+import numpy as np
+
 from frictiongym.envs.config import ConfigError, Node
 from frictiongym.envs.scenario import Scenario
 
@@ -226,3 +228,80 @@ class SpeedScheduledFiltered(SpeedScheduledBumpless):
         if plant not in self.filtering.velocity_filter_s:
             return f"no velocity filter for plant {plant!r} in controllers.yaml {self.filtering.SECTION}"
         return super().why_not(scenario)
+
+
+@dataclass(frozen=True)
+class TaskScheduledSettings(cfg.FamilySettings):
+    """loops: per plant preset, the built-in loop (by name) for each task of Scenario.task (controllers.yaml
+    `task_scheduled`, with the reason for each choice)."""
+
+    SECTION: ClassVar[str] = "task_scheduled"
+    loops: Mapping[str, Mapping[str, str]]
+
+    @classmethod
+    @cache
+    def defaults(cls) -> TaskScheduledSettings:
+        def build(s: Node) -> TaskScheduledSettings:
+            out = {}
+            for plant in list(s.keys()):
+                p = s.section(plant)
+                out[plant] = {task: p.string(task) for task in list(p.keys())}
+                if unknown := set(out[plant]) - set(TASKS):
+                    raise p.error(sorted(unknown)[0], f"not a task; one of {list(TASKS)}")
+            return cls(out)
+
+        return cfg.read(cls.SECTION, build)
+
+
+TASKS = ("regulation", "tracking")  # Scenario.task's values
+
+
+class TaskScheduled(Controller):
+    """One loop per task, chosen at the episode's start from the scenario's task (Scenario.task): e.g. the
+    identified feed-forward (PID+FF, defined for tracking) on moving references and PID at set-points,
+    where the feed-forward of a constant reference is zero and PID+FF would be PID. A residual base that
+    applies to every position scenario of a plant whose best loop depends on the task; not a baseline.
+    Each episode runs the chosen loop alone, bit for bit (its commands, its hardware)."""
+
+    name: ClassVar[str] = "TaskScheduled"
+
+    def __init__(
+        self, loops: Callable[[str], Controller], settings: TaskScheduledSettings | None = None, **overrides: Any
+    ):
+        """loops: a built-in controller by name (the registry's), for the schedule's loops."""
+        self.settings = cfg.with_overrides(settings or TaskScheduledSettings.defaults(), overrides)
+        self.loops = loops
+
+    def loop_for(self, scenario: Scenario) -> Controller | str:
+        """A new loop for the scenario's plant and task, or why there is none."""
+        plant = self.settings.loops.get(scenario.spec.name)
+        if plant is None:
+            return f"no schedule for plant {scenario.spec.name!r} in controllers.yaml {self.settings.SECTION}"
+        if scenario.task not in plant:
+            return f"no loop for {scenario.task} tasks of plant {scenario.spec.name!r} in controllers.yaml"
+        return self.loops(plant[scenario.task])
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        loop = self.loop_for(scenario)
+        if isinstance(loop, str):
+            return loop
+        reason = loop.why_not(scenario)
+        return None if reason is None else f"{loop.name}: {reason}"
+
+    def plant_overrides(self, scenario: Scenario) -> dict:
+        loop = self.loop_for(scenario)
+        return {} if isinstance(loop, str) else loop.plant_overrides(scenario)
+
+    def reset(self, ctx: EpisodeContext) -> None:
+        loop = self.loop_for(ctx.scenario)
+        if isinstance(loop, str):
+            raise ValueError(f"{self.name}: {loop}")
+        self.loop = loop
+        self.loop.reset(ctx)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        return self.loop.act(obs)
+
+    def params(self) -> dict[str, Any]:
+        loop = getattr(self, "loop", None)
+        return {} if loop is None else {"loop": loop.name, **loop.params()}
