@@ -266,7 +266,10 @@ class TaskScheduled(Controller):
     name: ClassVar[str] = "TaskScheduled"
 
     def __init__(
-        self, loops: Callable[[str], Controller], settings: TaskScheduledSettings | None = None, **overrides: Any
+        self,
+        loops: Callable[[str], Controller],
+        settings: TaskScheduledSettings | None = None,
+        **overrides: Any,
     ):
         """loops: a built-in controller by name (the registry's), for the schedule's loops."""
         self.settings = cfg.with_overrides(settings or TaskScheduledSettings.defaults(), overrides)
