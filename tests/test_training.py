@@ -514,21 +514,30 @@ def test_bench_training_prints_speed_time_to_beat_and_ratios(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "config, base",
+    "config, base, scenario",
     [
-        ("generalist_sac_m220_sched", "SpeedScheduled"),
-        ("generalist_sac_m220_filtered", "SpeedScheduledFiltered"),
+        ("generalist_sac_m220_sched", "SpeedScheduled", "m220_reversal_tracking_hard"),
+        ("generalist_sac_m220_filtered", "SpeedScheduledFiltered", "m220_reversal_tracking_hard"),
+        ("generalist_sac_kang_ff", "TaskScheduled", "kang_ramp"),
+        ("generalist_sac_kang_ff", "TaskScheduled", "kang_regulation"),
     ],
 )
-def test_a_residual_over_the_speed_scheduled_base_starts_as_that_base_bit_for_bit(config, base):
-    """The M220 generalist's fifth and seventh configs: a base from registry.BASES (not a baseline) in the
-    loop; its zero-output residual's episode equals the base's own."""
+def test_a_residual_over_a_scheduled_base_starts_as_that_base_bit_for_bit(config, base, scenario):
+    """The M220 generalist's fifth and seventh configs and Kang's tenth: a base from registry.BASES (not a
+    baseline) in the loop; its zero-output residual's episode equals the base's own, on a tracking
+    scenario and (Kang's task schedule) at a set-point, where the model's preview is filled in."""
     (cfg,) = load_config(config)
     assert cfg.base == base and cfg.base not in registry.BUILTIN
-    episode = validation_episodes("m220_reversal_tracking_hard")[0]
+    episode = validation_episodes(scenario)[0]
     ref = run_episode(registry.make(base), episode, keep_log=True)
     model = build_model(cfg, make_training_env(cfg, 0), 0, None)
-    c = SB3Policy(model, inputs=cfg.inputs, base=registry.base_controller(cfg.base), alpha=cfg.alpha)
+    c = SB3Policy(
+        model,
+        inputs=cfg.inputs,
+        base=registry.base_controller(cfg.base),
+        alpha=cfg.alpha,
+        plants=(load_scenario(cfg.scenario).spec.name,),
+    )
     got = run_episode(c, episode, keep_log=True)
     np.testing.assert_equal(got.metrics, ref.metrics)
     for k in ref.log:
