@@ -12,7 +12,7 @@ import numpy as np
 
 from frictiongym.envs.plants import PlantSpec
 from frictiongym.envs.plants.params import EpisodeParams
-from frictiongym.envs.scenario import Scenario
+from frictiongym.envs.scenario import TASKS, Scenario
 from frictiongym.envs.servo_env import decode_observation
 
 
@@ -41,7 +41,7 @@ class Controller(ABC):
     name: ClassVar[str] = "controller"
     reads_truth: ClassVar[bool] = False  # the evaluation loop calls observe_truth before every act
     sensor_kinds: ClassVar[tuple[str, ...]] = ("encoder", "tacho")
-    tasks: ClassVar[tuple[str, ...]] = ("regulation", "tracking")
+    tasks: ClassVar[tuple[str, ...]] = TASKS
 
     def why_not(self, scenario: Scenario) -> str | None:
         """None if this controller is defined for the scenario, else a one-line reason."""

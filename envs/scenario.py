@@ -52,6 +52,7 @@ REFERENCE_TYPES = (
     "recorded",
     "random",
 )
+TASKS = ("regulation", "tracking")  # Scenario.task: a constant reference, any other
 DEFAULTS = "_defaults"  # configs/scenarios/_defaults.yaml, which every scenario extends
 MAX_EPISODE_S = 3600.0  # one hour of simulated time
 MAX_EPISODE_STEPS = 1_000_000  # the per-episode logs hold 3 floats per step and simulation
@@ -235,8 +236,9 @@ class Scenario:
 
     @property
     def task(self) -> str:
-        """ "regulation" (constant reference) or "tracking"."""
-        return "regulation" if self.reference.type == "constant" else "tracking"
+        """ "regulation" (constant reference) or "tracking" (TASKS)."""
+        regulation, tracking = TASKS
+        return regulation if self.reference.type == "constant" else tracking
 
 
 @dataclass(frozen=True)

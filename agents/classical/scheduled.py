@@ -47,7 +47,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from frictiongym.envs.config import ConfigError, Node
-from frictiongym.envs.scenario import Scenario
+from frictiongym.envs.scenario import TASKS, Scenario
 
 from .. import settings as cfg
 from ..base import Controller, EpisodeContext, PhysicalController
@@ -253,9 +253,6 @@ class TaskScheduledSettings(cfg.FamilySettings):
         return cfg.read(cls.SECTION, build)
 
 
-TASKS = ("regulation", "tracking")  # Scenario.task's values
-
-
 class TaskScheduled(Controller):
     """One loop per task, chosen at the episode's start from the scenario's task (Scenario.task): e.g. the
     identified feed-forward (PID+FF, defined for tracking) on moving references and PID at set-points,
@@ -277,11 +274,12 @@ class TaskScheduled(Controller):
 
     def loop_for(self, scenario: Scenario) -> Controller | str:
         """A new loop for the scenario's plant and task, or why there is none."""
-        plant = self.settings.loops.get(scenario.spec.name)
+        name, section = scenario.spec.name, self.settings.SECTION
+        plant = self.settings.loops.get(name)
         if plant is None:
-            return f"no schedule for plant {scenario.spec.name!r} in controllers.yaml {self.settings.SECTION}"
+            return f"no schedule for plant {name!r} in controllers.yaml {section}"
         if scenario.task not in plant:
-            return f"no loop for {scenario.task} tasks of plant {scenario.spec.name!r} in controllers.yaml"
+            return f"no loop for {scenario.task} tasks in controllers.yaml {section}.{name}"
         return self.loops(plant[scenario.task])
 
     def why_not(self, scenario: Scenario) -> str | None:
