@@ -367,7 +367,7 @@ def test_the_task_schedule_runs_its_tasks_loop_alone_bit_for_bit():
     from frictiongym.agents.classical import PIDCoulombViscousFF
 
     c = registry.make("TaskScheduled")
-    assert "no schedule for plant 'm220'" in c.why_not(load_scenario("m220_random"))
+    assert "no schedule for plant 'emps'" in c.why_not(load_scenario("emps_random"))
     assert PIDCoulombViscousFF().why_not(load_scenario("kang_regulation")) is not None
     for scenario, alone in (("kang_random", PIDCoulombViscousFF()), ("kang_regulation", PID())):
         ep = Episode(scenario, 500000, True)
