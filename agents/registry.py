@@ -35,6 +35,7 @@ from .classical import (
     Southward,
     SpeedScheduled,
     SpeedScheduledBumpless,
+    SpeedScheduledFF,
     SpeedScheduledFiltered,
     StateFeedback,
     TaskScheduled,
@@ -74,6 +75,7 @@ BASES: dict[str, Callable[[], Controller]] = {
     "SpeedScheduled": partial(SpeedScheduled, builtin),
     "SpeedScheduledBumpless": partial(SpeedScheduledBumpless, builtin),
     "SpeedScheduledFiltered": partial(SpeedScheduledFiltered, builtin),
+    "SpeedScheduledFF": partial(SpeedScheduledFF, builtin),
     "TaskScheduled": partial(TaskScheduled, builtin),
 }
 

@@ -521,6 +521,8 @@ def test_bench_training_prints_speed_time_to_beat_and_ratios(tmp_path):
         ("generalist_sac_kang_ff", "TaskScheduled", "kang_ramp"),
         ("generalist_sac_kang_ff", "TaskScheduled", "kang_regulation"),
         ("generalist_sac_m220_ff", "TaskScheduled", "m220_reversal_tracking_slow"),
+        ("generalist_sac_m220_ffsched", "SpeedScheduledFF", "m220_reversal_tracking"),
+        ("generalist_sac_m220_ffsched", "SpeedScheduledFF", "m220_regulation"),
     ],
 )
 def test_a_residual_over_a_scheduled_base_starts_as_that_base_bit_for_bit(config, base, scenario):

@@ -12,10 +12,12 @@ from .scheduled import (
     ObserverFilterSettings,
     SpeedScheduled,
     SpeedScheduledBumpless,
+    SpeedScheduledFF,
     SpeedScheduledFiltered,
     SpeedScheduledSettings,
     TaskScheduled,
     TaskScheduledSettings,
+    TrackingLowSettings,
 )
 from .southward_rdfc import RDFC, RDFCSettings, Southward, SouthwardSettings
 from .state_feedback import StateFeedback, StateFeedbackSettings
@@ -36,11 +38,13 @@ __all__ = [
     "SouthwardSettings",
     "SpeedScheduled",
     "SpeedScheduledBumpless",
+    "SpeedScheduledFF",
     "SpeedScheduledFiltered",
     "SpeedScheduledSettings",
     "StateFeedback",
     "StateFeedbackSettings",
     "TaskScheduled",
     "TaskScheduledSettings",
+    "TrackingLowSettings",
     "design_pid",
 ]

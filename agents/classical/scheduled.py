@@ -113,8 +113,9 @@ class SpeedScheduled(PhysicalController):
     def schedule(self, plant: str) -> Schedule | None:
         return self.settings.schedules.get(plant)
 
-    def pair(self, plant: str) -> tuple[PhysicalController, PhysicalController]:
-        """The plant's low and high loops, new."""
+    def pair(self, scenario: Scenario) -> tuple[PhysicalController, PhysicalController]:
+        """The low and high loops of the scenario's plant, new."""
+        plant = scenario.spec.name
         s = self.settings.schedules[plant]
         out = []
         for role, name in (("low", s.low), ("high", s.high)):
@@ -133,14 +134,14 @@ class SpeedScheduled(PhysicalController):
         plant = scenario.spec.name
         if self.schedule(plant) is None:
             return f"no schedule for plant {plant!r} in controllers.yaml {self.settings.SECTION}"
-        for c in self.pair(plant):
+        for c in self.pair(scenario):
             if (reason := c.why_not(scenario)) is not None:
                 return f"{c.name}: {reason}"
         return None
 
     def start(self, ctx: EpisodeContext) -> None:
         self.s = self.settings.schedules[ctx.plant.name]
-        self.low, self.high = self.pair(ctx.plant.name)
+        self.low, self.high = self.pair(ctx.scenario)
         self.low.reset(ctx)
         self.high.reset(ctx)
         self.decay = math.exp(-self.h / self.s.hold_s)
@@ -211,9 +212,9 @@ class SpeedScheduledFiltered(SpeedScheduledBumpless):
         super().__init__(loops, settings, **overrides)
         self.filtering = filtering or ObserverFilterSettings.defaults()
 
-    def pair(self, plant: str) -> tuple[PhysicalController, PhysicalController]:
-        low, high = super().pair(plant)
-        taus = self.filtering.velocity_filter_s
+    def pair(self, scenario: Scenario) -> tuple[PhysicalController, PhysicalController]:
+        low, high = super().pair(scenario)
+        plant, taus = scenario.spec.name, self.filtering.velocity_filter_s
         if plant not in taus:
             raise ConfigError(f"{self.filtering.SECTION}.velocity_filter_s", f"no entry for plant {plant!r}")
         if not isinstance(high, LuGreObserver):
@@ -227,6 +228,62 @@ class SpeedScheduledFiltered(SpeedScheduledBumpless):
         plant = scenario.spec.name
         if plant not in self.filtering.velocity_filter_s:
             return f"no velocity filter for plant {plant!r} in controllers.yaml {self.filtering.SECTION}"
+        return super().why_not(scenario)
+
+
+@dataclass(frozen=True)
+class TrackingLowSettings(cfg.FamilySettings):
+    """low_tracking: per plant preset, the built-in loop (by name) SpeedScheduledFF runs below speed_low on
+    tracking tasks (controllers.yaml `speed_scheduled_ff`, with the measurements)."""
+
+    SECTION: ClassVar[str] = "speed_scheduled_ff"
+    low_tracking: Mapping[str, str]
+
+    @classmethod
+    @cache
+    def defaults(cls) -> TrackingLowSettings:
+        def build(s: Node) -> TrackingLowSettings:
+            f = s.section("low_tracking")
+            return cls({plant: f.string(plant) for plant in list(f.keys())})
+
+        return cfg.read(cls.SECTION, build)
+
+
+class SpeedScheduledFF(SpeedScheduledFiltered):
+    """SpeedScheduledFiltered whose low loop on a tracking task is another loop (controllers.yaml
+    `speed_scheduled_ff`: the identified feed-forward on PID for the M220), which sees the reference's
+    speed; at set-points the low loop stays speed_scheduled's (PID), where a feed-forward of a constant
+    reference is zero. The feed-forward's Coulomb step lands where the low loop has weight: at slow
+    reversals and as a fast motion's weight decays."""
+
+    name: ClassVar[str] = "SpeedScheduledFF"
+
+    def __init__(
+        self,
+        loops: Callable[[str], Controller],
+        settings: SpeedScheduledSettings | None = None,
+        filtering: ObserverFilterSettings | None = None,
+        tracking: TrackingLowSettings | None = None,
+        **overrides: Any,
+    ):
+        super().__init__(loops, settings, filtering, **overrides)
+        self.tracking = tracking or TrackingLowSettings.defaults()
+
+    def pair(self, scenario: Scenario) -> tuple[PhysicalController, PhysicalController]:
+        low, high = super().pair(scenario)
+        if scenario.task != "tracking":
+            return low, high
+        plant, section = scenario.spec.name, f"{self.tracking.SECTION}.low_tracking.{scenario.spec.name}"
+        name = self.tracking.low_tracking[plant]
+        low = self.loops(name)
+        if not isinstance(low, PhysicalController):
+            raise ConfigError(section, f"{name} is not a loop on physical units")
+        return low, high
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        plant = scenario.spec.name
+        if plant not in self.tracking.low_tracking:
+            return f"no tracking loop for plant {plant!r} in controllers.yaml {self.tracking.SECTION}"
         return super().why_not(scenario)
 
 
