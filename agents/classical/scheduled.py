@@ -34,6 +34,10 @@ episodes, point-to-point IAE 0.234 / 0.247 / 0.254 / 0.261, set-points and 0.05 
 (PID's). Chosen: 10 ms. (Before the observer's update was computed in expm1 form at small a·h,
 lugre_observer.py, τ of 2.5-7.5 ms gave errors of hundreds of rad on some episodes: not the loop but the
 update's rounding, as the filtered velocity decayed through values of 1e-300.)
+
+SpeedScheduledFF runs SpeedScheduledFiltered with another low loop on tracking tasks (controllers.yaml
+`speed_scheduled_ff`, with its validation figures): on the M220 the identified feed-forward on PID, which
+takes the Coulomb step at the 0.05 Hz reversals and as a 0.2 Hz motion's weight decays.
 """
 
 from __future__ import annotations
