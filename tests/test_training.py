@@ -527,8 +527,8 @@ def test_bench_training_prints_speed_time_to_beat_and_ratios(tmp_path):
 )
 def test_a_residual_over_a_scheduled_base_starts_as_that_base_bit_for_bit(config, base, scenario):
     """The M220 generalist's fifth, seventh, eighth and ninth configs and Kang's tenth: a base from
-    registry.BASES (not a baseline) in the loop; its zero-output residual's episode equals the base's own, on a tracking
-    scenario and (Kang's task schedule) at a set-point, where the model's preview is filled in."""
+    registry.BASES (not a baseline) in the loop; its zero-output residual's episode equals the base's
+    own, on a tracking scenario and at a set-point, where the model's preview is filled in."""
     (cfg,) = load_config(config)
     assert cfg.base == base and cfg.base not in registry.BUILTIN
     episode = validation_episodes(scenario)[0]
