@@ -378,6 +378,9 @@ def test_the_ff_schedule_runs_pid_ff_below_speed_low_on_tracking_and_pid_at_set_
     assert np.mean(peaks[0]) < 0.8 * np.mean(peaks[1])
     none = SpeedScheduledFF(builtin, tracking=TrackingLowSettings({}))
     assert "no tracking loop for plant 'm220'" in none.why_not(load_scenario("m220_random"))
+    zero = SpeedScheduledFF(builtin, tracking=TrackingLowSettings({"m220": "Zero"}))
+    with pytest.raises(ConfigError, match=r"speed_scheduled_ff\.low_tracking\.m220: Zero is not a loop"):
+        zero.why_not(load_scenario("m220_random"))
 
 
 def test_speed_scheduled_settings_are_checked_by_name():

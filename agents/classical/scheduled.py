@@ -117,17 +117,20 @@ class SpeedScheduled(PhysicalController):
     def schedule(self, plant: str) -> Schedule | None:
         return self.settings.schedules.get(plant)
 
+    def loop_names(self, scenario: Scenario) -> dict[str, tuple[str, str]]:
+        """The low and high loops of the scenario's plant by name, each with the controllers.yaml entry
+        that names it (for errors)."""
+        plant = scenario.spec.name
+        s, entry = self.settings.schedules[plant], f"{self.settings.SECTION}.{plant}"
+        return {"low": (s.low, f"{entry}.low"), "high": (s.high, f"{entry}.high")}
+
     def pair(self, scenario: Scenario) -> tuple[PhysicalController, PhysicalController]:
         """The low and high loops of the scenario's plant, new."""
-        plant = scenario.spec.name
-        s = self.settings.schedules[plant]
         out = []
-        for role, name in (("low", s.low), ("high", s.high)):
+        for name, entry in self.loop_names(scenario).values():
             c = self.loops(name)
             if not isinstance(c, PhysicalController):
-                raise ConfigError(
-                    f"{self.settings.SECTION}.{plant}.{role}", f"{name} is not a loop on physical units"
-                )
+                raise ConfigError(entry, f"{name} is not a loop on physical units")
             out.append(c)
         return out[0], out[1]
 
@@ -273,16 +276,12 @@ class SpeedScheduledFF(SpeedScheduledFiltered):
         super().__init__(loops, settings, filtering, **overrides)
         self.tracking = tracking or TrackingLowSettings.defaults()
 
-    def pair(self, scenario: Scenario) -> tuple[PhysicalController, PhysicalController]:
-        low, high = super().pair(scenario)
-        if scenario.task != "tracking":
-            return low, high
-        plant, section = scenario.spec.name, f"{self.tracking.SECTION}.low_tracking.{scenario.spec.name}"
-        name = self.tracking.low_tracking[plant]
-        low = self.loops(name)
-        if not isinstance(low, PhysicalController):
-            raise ConfigError(section, f"{name} is not a loop on physical units")
-        return low, high
+    def loop_names(self, scenario: Scenario) -> dict[str, tuple[str, str]]:
+        names = super().loop_names(scenario)
+        if scenario.task == "tracking":
+            plant, section = scenario.spec.name, self.tracking.SECTION
+            names["low"] = (self.tracking.low_tracking[plant], f"{section}.low_tracking.{plant}")
+        return names
 
     def why_not(self, scenario: Scenario) -> str | None:
         plant = scenario.spec.name
