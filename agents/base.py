@@ -87,6 +87,12 @@ class Controller(ABC):
         """The controller's own parameters (for reports)."""
         return {}
 
+    def residual_share(self) -> float:
+        """As a residual's base: the share in [0, 1] of the residual's authority α it grants at its last
+        act (learned.residual_action). 1: the residual acts everywhere; a gated base keeps it off where
+        its own loop should act alone (scheduled.SpeedScheduledFFGated)."""
+        return 1.0
+
     def lockstep(self, n: int) -> Lockstep:
         """The controller for n episodes of one scenario run together (evaluate.run_episodes): this one
         for the first and a deep copy for each other, each acting on its own episode's observation. A

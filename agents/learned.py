@@ -102,11 +102,15 @@ def policy_observation(
     return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=-1)
 
 
-def residual_action(base_action: np.ndarray, residual: np.ndarray, alpha: float) -> np.ndarray:
-    """u = clip(u_base + α·u_res, -1, 1): the residual has authority α of the full command range
-    (elementwise: one action (1,) or rows (n, 1))."""
+def residual_action(
+    base_action: np.ndarray, residual: np.ndarray, alpha: float, share: float | np.ndarray = 1.0
+) -> np.ndarray:
+    """u = clip(u_base + α·s·u_res, -1, 1): the residual has authority α of the full command range, times
+    the share s in [0, 1] its base grants it now (Controller.residual_share; 1 for every base but a gated
+    one), elementwise: one action (1,) or rows (n, 1) with s a number or (n, 1). At s = 1 the command is
+    u_base + α·u_res to the last bit."""
     base = np.asarray(base_action, dtype=np.float64)
-    u = base + alpha * np.asarray(residual).reshape(base.shape)
+    u = base + alpha * share * np.asarray(residual).reshape(base.shape)
     return np.clip(u, -1.0, 1.0).astype(np.float32)
 
 
@@ -406,20 +410,25 @@ class SB3Policy(LearnedNeeds, Controller):
             self._differences = difference_indices(ctx.scenario, self._fill)
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        ub = self.base.act(obs) if self.base is not None else None
-        return self.actions(obs[None], None if ub is None else np.asarray(ub).reshape(1, 1))[0]
+        if self.base is None:
+            return self.actions(obs[None], None)[0]
+        ub = np.asarray(self.base.act(obs)).reshape(1, 1)
+        return self.actions(obs[None], ub, self.base.residual_share())[0]
 
-    def actions(self, obs: np.ndarray, base: np.ndarray | None) -> np.ndarray:
-        """The actions (n, 1) for observation rows (n, d) and, in residual mode, the base actions (n, 1):
-        the model input, the frozen normaliser, the network and the residual, each row's action the same
-        whatever the other rows hold (one network call for a RowwiseActor, one per row otherwise)."""
+    def actions(
+        self, obs: np.ndarray, base: np.ndarray | None, share: float | np.ndarray = 1.0
+    ) -> np.ndarray:
+        """The actions (n, 1) for observation rows (n, d) and, in residual mode, the base actions (n, 1)
+        and the residual's shares the bases grant (a number or (n, 1); residual_action): the model input,
+        the frozen normaliser, the network and the residual, each row's action the same whatever the
+        other rows hold (one network call for a RowwiseActor, one per row otherwise)."""
         x = policy_observation(with_preview(obs, self._reference_end, self._fill), base, self._differences)
         if self.normalizer is not None:
             x = self.normalizer.normalize_obs(x).astype(np.float32)
         a = self._network(x)
         if base is None:
             return np.clip(np.asarray(a, dtype=np.float32), -1.0, 1.0)
-        return residual_action(base, a, self.alpha)
+        return residual_action(base, a, self.alpha, share)
 
     def _network(self, x: np.ndarray) -> np.ndarray:
         """The deterministic model's actions (n, k) for model inputs (n, d)."""
@@ -504,4 +513,5 @@ class PolicyLockstep(Lockstep):
         if self.bases is None:
             return self.policy.actions(obs, None)
         base = np.array([np.asarray(u).reshape(1) for u in self.bases.act(obs, rows)])  # dtypes as act's
-        return self.policy.actions(obs, base)
+        share = np.array([[self.bases.controllers[r].residual_share()] for r in rows])
+        return self.policy.actions(obs, base, share)

@@ -36,6 +36,7 @@ from .classical import (
     SpeedScheduled,
     SpeedScheduledBumpless,
     SpeedScheduledFF,
+    SpeedScheduledFFGated,
     SpeedScheduledFiltered,
     StateFeedback,
     TaskScheduled,
@@ -76,6 +77,7 @@ BASES: dict[str, Callable[[], Controller]] = {
     "SpeedScheduledBumpless": partial(SpeedScheduledBumpless, builtin),
     "SpeedScheduledFiltered": partial(SpeedScheduledFiltered, builtin),
     "SpeedScheduledFF": partial(SpeedScheduledFF, builtin),
+    "SpeedScheduledFFGated": partial(SpeedScheduledFFGated, builtin),
     "TaskScheduled": partial(TaskScheduled, builtin),
 }
 

@@ -523,10 +523,11 @@ def test_bench_training_prints_speed_time_to_beat_and_ratios(tmp_path):
         ("generalist_sac_m220_ff", "TaskScheduled", "m220_reversal_tracking_slow"),
         ("generalist_sac_m220_ffsched", "SpeedScheduledFF", "m220_reversal_tracking"),
         ("generalist_sac_m220_ffsched", "SpeedScheduledFF", "m220_regulation"),
+        ("generalist_sac_m220_gated", "SpeedScheduledFFGated", "m220_reversal_tracking"),
     ],
 )
 def test_a_residual_over_a_scheduled_base_starts_as_that_base_bit_for_bit(config, base, scenario):
-    """The M220 generalist's fifth, seventh, eighth and ninth configs and Kang's tenth: a base from
+    """The M220 generalist's fifth, seventh to tenth configs and Kang's tenth: a base from
     registry.BASES (not a baseline) in the loop; its zero-output residual's episode equals the base's
     own, on a tracking scenario and at a set-point, where the model's preview is filled in."""
     (cfg,) = load_config(config)

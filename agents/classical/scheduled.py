@@ -152,7 +152,7 @@ class SpeedScheduled(PhysicalController):
         self.low.reset(ctx)
         self.high.reset(ctx)
         self.decay = math.exp(-self.h / self.s.hold_s)
-        self.speed, self.r_prev = 0.0, None
+        self.speed, self.r_prev, self.w = 0.0, None, 0.0
 
     def weight(self, r: float) -> float:
         """The high loop's weight after this sample's reference (updates the speed envelope)."""
@@ -162,7 +162,7 @@ class SpeedScheduled(PhysicalController):
         return min(1.0, max(0.0, (self.speed - self.s.speed_low) / (self.s.speed_high - self.s.speed_low)))
 
     def command(self, y: float, r: float) -> float:
-        w = self.weight(r)
+        self.w = w = self.weight(r)
         if self.bumpless:
             self.low.authority(1.0 - w)
             self.high.authority(w)
@@ -288,6 +288,21 @@ class SpeedScheduledFF(SpeedScheduledFiltered):
         if plant not in self.tracking.low_tracking:
             return f"no tracking loop for plant {plant!r} in controllers.yaml {self.tracking.SECTION}"
         return super().why_not(scenario)
+
+
+class SpeedScheduledFFGated(SpeedScheduledFF):
+    """SpeedScheduledFF that grants a residual over it the high loop's share w of its authority
+    (Controller.residual_share): none at set-points and where the low loop acts alone, all of it on fast
+    motion. The same commands as SpeedScheduledFF, bit for bit; only a residual's authority differs.
+    Why: the ninth M220 generalists' residuals, trained over SpeedScheduledFF at full authority, put a
+    limit cycle on the 0.05 Hz reversals (3-4x the base's reversal peak, docs/training.md) and raised the
+    base's own 0.2 Hz reversal peaks, where their input, the quantised low-speed motion, carries no
+    friction the base's low loop misses."""
+
+    name: ClassVar[str] = "SpeedScheduledFFGated"
+
+    def residual_share(self) -> float:
+        return self.w
 
 
 @dataclass(frozen=True)

@@ -60,7 +60,10 @@ class ResidualEnv(gym.Wrapper):
         return policy_observation(obs, self.u_base, self.differences)
 
     def step(self, action: np.ndarray):
-        u = residual_action(self.u_base, action, self.alpha) if self.base is not None else action
+        if self.base is None:
+            u = action
+        else:
+            u = residual_action(self.u_base, action, self.alpha, self.base.residual_share())
         obs, reward, term, trunc, info = self.env.step(np.asarray(u, dtype=np.float32).reshape(1))
         return self._observe(obs), reward, term, trunc, info
 

@@ -130,7 +130,10 @@ class TrainingVecEnv(_vec_env_base()):
         if self.bases is None:  # the env's action is a float32, as a single env receives it
             u = a.astype(np.float32).reshape(n)
         else:
-            u = np.concatenate([residual_action(self.u_base[i], a[i], self.alpha) for i in range(n)])
+            shares = [b.residual_share() for b in self.bases]
+            u = np.concatenate(
+                [residual_action(self.u_base[i], a[i], self.alpha, shares[i]) for i in range(n)]
+            )
         obs, reward, term, trunc, _ = self.core.step(u)
         obs = self._observe(range(self.num_envs), obs)
         done = term | trunc
