@@ -107,10 +107,12 @@ def residual_action(
 ) -> np.ndarray:
     """u = clip(u_base + α·s·u_res, -1, 1): the residual has authority α of the full command range, times
     the share s in [0, 1] its base grants it now (Controller.residual_share; 1 for every base but a gated
-    one), elementwise: one action (1,) or rows (n, 1) with s a number or (n, 1). At s = 1 the command is
-    u_base + α·u_res to the last bit."""
+    one), elementwise: one action (1,) or rows (n, 1) with s a number or (n, 1). s multiplies α·u_res in
+    u_res's precision, so a number and an array give the same bits and s = 1 gives u_base + α·u_res to
+    the last bit."""
     base = np.asarray(base_action, dtype=np.float64)
-    u = base + alpha * share * np.asarray(residual).reshape(base.shape)
+    r = alpha * np.asarray(residual).reshape(base.shape)
+    u = base + np.asarray(share, dtype=r.dtype) * r
     return np.clip(u, -1.0, 1.0).astype(np.float32)
 
 

@@ -12,7 +12,7 @@ from conftest import SCENARIO, write_config
 
 from frictiongym.agents import registry
 from frictiongym.agents.evaluate import EnvCache
-from frictiongym.agents.learned import PolicyInputs, RowwiseActor, SB3Policy
+from frictiongym.agents.learned import PolicyInputs, RowwiseActor, SB3Policy, residual_action
 from frictiongym.agents.training import build_model, load_config, make_training_env, validation_episodes
 
 
@@ -133,6 +133,22 @@ def test_policy_rows_act_as_each_row_alone(tmp_path, algo, privileged, rowwise):
     want = np.array([model.predict(row, deterministic=True)[0] for row in x])
     got = policy._network(x)
     assert np.abs(got - want).max() <= (1e-5 if rowwise else 0.0) and len(np.unique(got)) > 10
+
+
+def test_a_residual_share_of_one_is_the_ungated_command_to_the_last_bit():
+    """residual_action's share (a gated base's grant) leaves every other residual as it was: at s = 1,
+    clip(u_base + α·a) bit for bit for float32 network outputs, one row or many; at s = 0 the base's
+    action; rows take their own share."""
+    rng = np.random.default_rng(0)
+    base, a = rng.uniform(-1, 1, (64, 1)), rng.uniform(-1, 1, (64, 1)).astype(np.float32)
+    before = np.clip(base + 0.1 * a, -1.0, 1.0).astype(np.float32)  # the formula before the share
+    np.testing.assert_array_equal(residual_action(base, a, 0.1), before)
+    np.testing.assert_array_equal(residual_action(base, a, 0.1, np.ones((64, 1))), before)
+    np.testing.assert_array_equal(residual_action(base[0], a[0], 0.1, 1.0), before[0])
+    np.testing.assert_array_equal(residual_action(base, a, 0.1, 0.0), base.astype(np.float32))
+    half = np.where(np.arange(64)[:, None] % 2 == 0, 1.0, 0.0)
+    np.testing.assert_array_equal(residual_action(base, a, 0.1, half)[::2], before[::2])
+    np.testing.assert_array_equal(residual_action(base, a, 0.1, half)[1::2], base[1::2].astype(np.float32))
 
 
 def test_tree_sum_is_a_fixed_pairwise_order():

@@ -21,7 +21,7 @@ from frictiongym.agents import registry
 from frictiongym.agents.base import EpisodeContext
 from frictiongym.agents.engine import plan
 from frictiongym.agents.evaluate import EnvCache, run_episode
-from frictiongym.agents.learned import SB3Policy
+from frictiongym.agents.learned import SB3Policy, residual_action
 from frictiongym.agents.settings import knowledge_defaults
 from frictiongym.agents.training import (
     EXPORTED,
@@ -546,6 +546,64 @@ def test_a_residual_over_a_scheduled_base_starts_as_that_base_bit_for_bit(config
     np.testing.assert_equal(got.metrics, ref.metrics)
     for k in ref.log:
         np.testing.assert_array_equal(got.log[k], ref.log[k])
+
+
+def test_a_gated_base_keeps_its_residual_off_at_set_points_and_grants_all_of_it_on_fast_motion():
+    """SpeedScheduledFFGated commands as SpeedScheduledFF bit for bit; a residual over it is scaled by
+    the schedule's high-loop weight w. A network whose output is not zero (its mean's bias set to 0.5):
+    at a set-point (the reference never moves, w = 0) the residual's episode is the base's own, bit for
+    bit, where over the ungated base it is not; on the 0.2 Hz reversals (peak speed 0.63 rad/s, above
+    speed_high 0.4) w reaches 1 and the gated residual moves the episode as the ungated one does."""
+    (cfg,) = load_config("generalist_sac_m220_gated")
+    model = build_model(cfg, make_training_env(cfg, 0), 0, None)
+    model.policy.actor.mu.bias.data.fill_(0.5)
+
+    def over(base: str) -> SB3Policy:
+        return SB3Policy(
+            model, inputs=cfg.inputs, base=registry.base_controller(base), alpha=cfg.alpha, plants=("m220",)
+        )
+
+    rest = validation_episodes("m220_regulation")[0]
+    base = run_episode(registry.make("SpeedScheduledFFGated"), rest, keep_log=True)
+    ungated_base = run_episode(registry.make("SpeedScheduledFF"), rest, keep_log=True)
+    np.testing.assert_array_equal(base.log["command"], ungated_base.log["command"])
+    np.testing.assert_array_equal(
+        run_episode(over("SpeedScheduledFFGated"), rest, keep_log=True).log["command"], base.log["command"]
+    )
+    assert not np.array_equal(
+        run_episode(over("SpeedScheduledFF"), rest, keep_log=True).log["command"], base.log["command"]
+    )
+    moving = validation_episodes("m220_reversal_tracking")[0]
+    gated_base, sc = registry.make("SpeedScheduledFFGated"), load_scenario("m220_reversal_tracking")
+    gated_base.reset(EpisodeContext(sc, sc.spec, knowledge_defaults()))
+    shares = []
+    for k in range(400):  # 2 s of the 0.2 Hz reference (0.5 rad), tracked
+        r = 0.5 * np.sin(2 * np.pi * 0.2 * k * gated_base.h)
+        gated_base.command(r, r)
+        shares.append(gated_base.residual_share())
+    assert shares[0] == 0.0 and max(shares) == 1.0 and all(0.0 <= s <= 1.0 for s in shares)
+    moved = run_episode(over("SpeedScheduledFFGated"), moving).metrics["reversal_peak_error"]
+    assert moved != run_episode(registry.make("SpeedScheduledFF"), moving).metrics["reversal_peak_error"]
+
+
+def test_the_training_envs_apply_the_gated_bases_share_as_evaluation_does():
+    """The training env's command (what the core steps) is residual_action with each env's own base
+    action and share, as SB3Policy's: w < 1 on some steps (m220_random starts at rest and holds) and 1 on
+    others."""
+    (cfg,) = load_config("generalist_sac_m220_gated")
+    env = make_training_env(cfg, 0)
+    env.reset()
+    sent, step = [], env.core.step
+    env.core.step = lambda u: (sent.append(np.array(u)), step(u))[1]
+    shares = []
+    for _ in range(300):
+        base, share = env.u_base.copy(), [b.residual_share() for b in env.bases]
+        env.step(np.ones((env.num_envs, 1), dtype=np.float32))
+        one = np.ones(1, dtype=np.float32)
+        want = [residual_action(b, one, cfg.alpha, w) for b, w in zip(base, share, strict=True)]
+        np.testing.assert_array_equal(sent[-1], np.concatenate(want))
+        shares += share
+    assert min(shares) < 1.0 and max(shares) == 1.0
 
 
 @pytest.mark.slow
