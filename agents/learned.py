@@ -24,7 +24,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from frictiongym.envs.scenario import Scenario
+from frictiongym.envs.scenario import REGULATION, Scenario
 
 from .base import Controller, EpisodeContext, Lockstep
 
@@ -293,7 +293,7 @@ def preview_fill(observes: int, inputs: PolicyInputs, plants: tuple[str, ...], s
     tested), so one model can serve a plant's regulation and tracking scenarios. Within a plant the
     layouts differ by the preview alone (the history and privileged blocks are the model's inputs), so
     the missing inputs are the preview; a model of unknown or other plants gets nothing filled (0)."""
-    if scenario.spec.name not in plants or scenario.task != "regulation" or scenario.preview_steps:
+    if scenario.spec.name not in plants or scenario.task != REGULATION or scenario.preview_steps:
         return 0
     return max(observes - inputs.size(scenario), 0)
 

@@ -52,7 +52,8 @@ REFERENCE_TYPES = (
     "recorded",
     "random",
 )
-TASKS = ("regulation", "tracking")  # Scenario.task: a constant reference, any other
+REGULATION, TRACKING = "regulation", "tracking"  # Scenario.task: a constant reference, any other
+TASKS = (REGULATION, TRACKING)
 DEFAULTS = "_defaults"  # configs/scenarios/_defaults.yaml, which every scenario extends
 MAX_EPISODE_S = 3600.0  # one hour of simulated time
 MAX_EPISODE_STEPS = 1_000_000  # the per-episode logs hold 3 floats per step and simulation
@@ -236,9 +237,8 @@ class Scenario:
 
     @property
     def task(self) -> str:
-        """ "regulation" (constant reference) or "tracking" (TASKS)."""
-        regulation, tracking = TASKS
-        return regulation if self.reference.type == "constant" else tracking
+        """REGULATION (a constant reference) or TRACKING (any other)."""
+        return REGULATION if self.reference.type == "constant" else TRACKING
 
 
 @dataclass(frozen=True)

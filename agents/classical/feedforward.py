@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from typing import ClassVar
 
-from frictiongym.envs.scenario import Scenario
+from frictiongym.envs.scenario import TRACKING, Scenario
 
 from ..base import EpisodeContext, drive_friction_reason
 from .pid import PID
@@ -19,7 +19,7 @@ class CoulombViscousFF(PID):
 
     name: ClassVar[str] = "CoulombViscousFF"
     sensor_kinds: ClassVar[tuple[str, ...]] = ("encoder",)
-    tasks: ClassVar[tuple[str, ...]] = ("tracking",)
+    tasks: ClassVar[tuple[str, ...]] = (TRACKING,)
     integral: ClassVar[bool] = False
 
     def why_not(self, scenario: Scenario) -> str | None:

@@ -38,6 +38,11 @@ update's rounding, as the filtered velocity decayed through values of 1e-300.)
 SpeedScheduledFF runs SpeedScheduledFiltered with another low loop on tracking tasks (controllers.yaml
 `speed_scheduled_ff`, with its validation figures): on the M220 the identified feed-forward on PID, which
 takes the Coulomb step at the 0.05 Hz reversals and as a 0.2 Hz motion's weight decays.
+
+SpeedScheduledFFGated commands as SpeedScheduledFF and, as a residual's base, grants the residual only the
+high loop's share w of its authority (Controller.residual_share): a residual over it acts on fast motion,
+where the observer's compensation leaves a reversal glitch to learn, and not at set-points nor where PID+FF
+acts alone.
 """
 
 from __future__ import annotations
@@ -51,7 +56,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from frictiongym.envs.config import ConfigError, Node
-from frictiongym.envs.scenario import TASKS, Scenario
+from frictiongym.envs.scenario import TASKS, TRACKING, Scenario
 
 from .. import settings as cfg
 from ..base import Controller, EpisodeContext, PhysicalController
@@ -278,7 +283,7 @@ class SpeedScheduledFF(SpeedScheduledFiltered):
 
     def loop_names(self, scenario: Scenario) -> dict[str, tuple[str, str]]:
         names = super().loop_names(scenario)
-        if scenario.task == "tracking":
+        if scenario.task == TRACKING:
             plant, section = scenario.spec.name, self.tracking.SECTION
             names["low"] = (self.tracking.low_tracking[plant], f"{section}.low_tracking.{plant}")
         return names

@@ -8,7 +8,7 @@ from functools import cache
 from typing import Any, ClassVar
 
 from frictiongym.envs import units
-from frictiongym.envs.scenario import Scenario
+from frictiongym.envs.scenario import REGULATION, Scenario
 
 from .. import settings as cfg
 from ..base import EpisodeContext, PhysicalController, drive_friction_reason
@@ -68,7 +68,7 @@ class Southward(PhysicalController):
 
     name: ClassVar[str] = "Southward"
     sensor_kinds: ClassVar[tuple[str, ...]] = ("encoder",)
-    tasks: ClassVar[tuple[str, ...]] = ("regulation",)
+    tasks: ClassVar[tuple[str, ...]] = (REGULATION,)
 
     def __init__(
         self, settings: SouthwardSettings | None = None, pid: PIDSettings | None = None, **overrides: Any
