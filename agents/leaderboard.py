@@ -120,7 +120,7 @@ def why_not_beats(
     several scenarios (agents/training/) applies the same rule."""
     why = []
     if not paired["diff_hi"] < 0:
-        why.append("difference interval does not exclude 0" if paired["diff_lo"] < 0 else "worse")
+        why.append("worse" if paired["diff_lo"] > 0 else "difference interval does not exclude 0")
     if not effort_ratio <= max_effort_ratio:
         why.append(f"effort {effort_ratio:.2f}x")
     if not lc <= 1.2 * lc_base + band:

@@ -147,6 +147,16 @@ def test_verdict_requires_a_paired_win_bounded_effort_and_no_new_limit_cycle():
     assert got["cycle"]["why_not"].startswith("limit cycle") and "exclude 0" in got["unsure"]["why_not"]
 
 
+def test_a_row_equal_to_its_baseline_is_a_tie_and_a_row_above_it_is_worse():
+    """The paired interval's verdict names what it shows: entirely above 0 is "worse"; an interval that
+    reaches 0 (a row equal to its baseline on every episode gives [0, 0], e.g. a gated residual at a
+    set-point, which is its base) does not exclude 0."""
+    paired = {"diff": 0.0, "diff_lo": 0.0, "diff_hi": 0.0, "p_improve": 0.0}
+    assert leaderboard.why_not_beats(paired, 1.0, 0.0, 0.0, 0.0) == ["difference interval does not exclude 0"]
+    above = {"diff": 1e-4, "diff_lo": 5e-5, "diff_hi": 2e-4, "p_improve": 0.0}
+    assert leaderboard.why_not_beats(above, 1.0, 0.0, 0.0, 0.0) == ["worse"]
+
+
 def test_figures_are_drawn_one_at_a_time_each_closed_before_the_next(tmp_path, monkeypatch):
     """The default suite draws 25+ figures; drawing them all before saving any kept them all open
     (matplotlib warned at 20). Each figure is saved and closed before the next is drawn."""
