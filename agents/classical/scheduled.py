@@ -300,9 +300,10 @@ class SpeedScheduledFFGated(SpeedScheduledFF):
     (Controller.residual_share): none at set-points and where the low loop acts alone, all of it on fast
     motion. The same commands as SpeedScheduledFF, bit for bit; only a residual's authority differs.
     Why: the ninth M220 generalists' residuals, trained over SpeedScheduledFF at full authority, put a
-    limit cycle on the 0.05 Hz reversals (3-4x the base's reversal peak, docs/training.md) and raised the
-    base's own 0.2 Hz reversal peaks, where their input, the quantised low-speed motion, carries no
-    friction the base's low loop misses."""
+    limit cycle on the 0.05 Hz reversals (3-4x the base's reversal peak) and raised the base's own 0.2 Hz
+    reversal peaks, at low speed, where the base's low loop already takes the Coulomb step. The tenth
+    attempt, trained over this base, was not selected: it also gives up the set-points, where a residual
+    at full authority beats PID (docs/training.md, "Tenth attempt")."""
 
     name: ClassVar[str] = "SpeedScheduledFFGated"
 
