@@ -37,6 +37,7 @@ from .classical import (
     SpeedScheduledBumpless,
     SpeedScheduledFF,
     SpeedScheduledFFGated,
+    SpeedScheduledFFRestGated,
     SpeedScheduledFiltered,
     StateFeedback,
     TaskScheduled,
@@ -78,6 +79,7 @@ BASES: dict[str, Callable[[], Controller]] = {
     "SpeedScheduledFiltered": partial(SpeedScheduledFiltered, builtin),
     "SpeedScheduledFF": partial(SpeedScheduledFF, builtin),
     "SpeedScheduledFFGated": partial(SpeedScheduledFFGated, builtin),
+    "SpeedScheduledFFRestGated": partial(SpeedScheduledFFRestGated, builtin),
     "TaskScheduled": partial(TaskScheduled, builtin),
 }
 

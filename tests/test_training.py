@@ -524,10 +524,11 @@ def test_bench_training_prints_speed_time_to_beat_and_ratios(tmp_path):
         ("generalist_sac_m220_ffsched", "SpeedScheduledFF", "m220_reversal_tracking"),
         ("generalist_sac_m220_ffsched", "SpeedScheduledFF", "m220_regulation"),
         ("generalist_sac_m220_gated", "SpeedScheduledFFGated", "m220_reversal_tracking"),
+        ("generalist_sac_m220_restgated", "SpeedScheduledFFRestGated", "m220_regulation"),
     ],
 )
 def test_a_residual_over_a_scheduled_base_starts_as_that_base_bit_for_bit(config, base, scenario):
-    """The M220 generalist's fifth, seventh to tenth configs and Kang's tenth: a base from
+    """The M220 generalist's fifth, seventh to eleventh configs and Kang's tenth: a base from
     registry.BASES (not a baseline) in the loop; its zero-output residual's episode equals the base's
     own, on a tracking scenario and at a set-point, where the model's preview is filled in."""
     (cfg,) = load_config(config)
@@ -584,6 +585,35 @@ def test_a_gated_base_keeps_its_residual_off_at_set_points_and_grants_all_of_it_
     assert shares[0] == 0.0 and max(shares) == 1.0 and all(0.0 <= s <= 1.0 for s in shares)
     moved = run_episode(over("SpeedScheduledFFGated"), moving).metrics["reversal_peak_error"]
     assert moved != run_episode(registry.make("SpeedScheduledFF"), moving).metrics["reversal_peak_error"]
+
+
+def test_a_rest_gated_base_grants_its_residual_all_of_it_at_rest_and_w_while_the_reference_moves():
+    """SpeedScheduledFFRestGated commands as SpeedScheduledFF bit for bit. Its grant is 1 on every sample
+    whose reference equals the last one's (from the second sample of a set-point on; the first has no last
+    one and takes w, 0 at rest), and the schedule's w on every sample of a moving reference, so on the
+    0.05 Hz reversals (peak speed 0.16 rad/s, w at most 0.19) a residual keeps under a fifth of its
+    authority. A residual with non-zero output at a set-point moves the episode, as over the ungated base."""
+    (cfg,) = load_config("generalist_sac_m220_restgated")
+    model = build_model(cfg, make_training_env(cfg, 0), 0, None)
+    model.policy.actor.mu.bias.data.fill_(0.5)
+    rest = validation_episodes("m220_regulation")[0]
+    base = run_episode(registry.make("SpeedScheduledFFRestGated"), rest, keep_log=True)
+    ungated = run_episode(registry.make("SpeedScheduledFF"), rest, keep_log=True)
+    np.testing.assert_array_equal(base.log["command"], ungated.log["command"])
+    over = SB3Policy(
+        model, inputs=cfg.inputs, base=registry.base_controller(cfg.base), alpha=cfg.alpha, plants=("m220",)
+    )
+    assert not np.array_equal(run_episode(over, rest, keep_log=True).log["command"], base.log["command"])
+    c, sc = registry.make("SpeedScheduledFFRestGated"), load_scenario("m220_reversal_tracking_slow")
+    c.reset(EpisodeContext(sc, sc.spec, knowledge_defaults()))
+    shares, ws = [], []
+    for k in range(2000):  # 10 s of a 0.05 Hz reference of 0.5 rad, then 1 s held
+        r = 0.5 * np.sin(2 * np.pi * 0.05 * min(k, 1800) * c.h)
+        c.command(r, r)
+        shares.append(c.residual_share())
+        ws.append(c.w)
+    assert shares[:1801] == ws[:1801] and 0.0 < max(ws[:1801]) < 0.2
+    assert shares[1801:] == [1.0] * 199 and ws[-1] < ws[1801]
 
 
 def test_the_training_envs_apply_the_gated_bases_share_as_evaluation_does():

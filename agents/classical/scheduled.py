@@ -42,7 +42,8 @@ takes the Coulomb step at the 0.05 Hz reversals and as a 0.2 Hz motion's weight 
 SpeedScheduledFFGated commands as SpeedScheduledFF and, as a residual's base, grants the residual only the
 high loop's share w of its authority (Controller.residual_share): a residual over it acts on fast motion,
 where the observer's compensation leaves a reversal glitch to learn, and not at set-points nor where PID+FF
-acts alone.
+acts alone. SpeedScheduledFFRestGated grants it all of its authority while the reference is at rest (a
+set-point, a hold) and w otherwise.
 """
 
 from __future__ import annotations
@@ -309,6 +310,29 @@ class SpeedScheduledFFGated(SpeedScheduledFF):
 
     def residual_share(self) -> float:
         return self.w
+
+
+class SpeedScheduledFFRestGated(SpeedScheduledFFGated):
+    """SpeedScheduledFFGated that grants a residual all of its authority while the reference is at rest
+    (this sample's reference equals the last one's: a set-point, a point-to-point hold) and w otherwise.
+    Why: the tenth attempt's gate closed at set-points too, where the ninth M220 generalists' residuals
+    (at full authority) stop the drive closer than PID; at rest the reference does not move at all, while
+    at a slow reversal it moves on every sample, so the two are told apart exactly. The same commands as
+    SpeedScheduledFF, bit for bit; only a residual's authority differs (docs/training.md, "Eleventh
+    attempt")."""
+
+    name: ClassVar[str] = "SpeedScheduledFFRestGated"
+
+    def start(self, ctx: EpisodeContext) -> None:
+        super().start(ctx)
+        self.at_rest = False
+
+    def weight(self, r: float) -> float:
+        self.at_rest = self.r_prev is not None and r == self.r_prev
+        return super().weight(r)
+
+    def residual_share(self) -> float:
+        return 1.0 if self.at_rest else self.w
 
 
 @dataclass(frozen=True)
