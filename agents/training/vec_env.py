@@ -130,10 +130,8 @@ class TrainingVecEnv(_vec_env_base()):
         if self.bases is None:  # the env's action is a float32, as a single env receives it
             u = a.astype(np.float32).reshape(n)
         else:
-            shares = [b.residual_share() for b in self.bases]
-            u = np.concatenate(
-                [residual_action(self.u_base[i], a[i], self.alpha, shares[i]) for i in range(n)]
-            )
+            shares = np.array([[b.residual_share()] for b in self.bases])
+            u = residual_action(np.concatenate(self.u_base).reshape(n, 1), a, self.alpha, shares).reshape(n)
         obs, reward, term, trunc, _ = self.core.step(u)
         obs = self._observe(range(self.num_envs), obs)
         done = term | trunc
