@@ -36,6 +36,7 @@ from .classical import (
     SpeedScheduled,
     SpeedScheduledBumpless,
     SpeedScheduledFF,
+    SpeedScheduledFFFloorGated,
     SpeedScheduledFFGated,
     SpeedScheduledFFRestGated,
     SpeedScheduledFiltered,
@@ -80,6 +81,7 @@ BASES: dict[str, Callable[[], Controller]] = {
     "SpeedScheduledFF": partial(SpeedScheduledFF, builtin),
     "SpeedScheduledFFGated": partial(SpeedScheduledFFGated, builtin),
     "SpeedScheduledFFRestGated": partial(SpeedScheduledFFRestGated, builtin),
+    "SpeedScheduledFFFloorGated": partial(SpeedScheduledFFFloorGated, builtin),
     "TaskScheduled": partial(TaskScheduled, builtin),
 }
 

@@ -19,6 +19,7 @@ from conftest import HYPER, SCENARIO, write_config
 
 from frictiongym.agents import registry
 from frictiongym.agents.base import EpisodeContext
+from frictiongym.agents.classical import MotionFloorSettings
 from frictiongym.agents.engine import plan
 from frictiongym.agents.evaluate import EnvCache, run_episode
 from frictiongym.agents.learned import SB3Policy, residual_action
@@ -525,10 +526,11 @@ def test_bench_training_prints_speed_time_to_beat_and_ratios(tmp_path):
         ("generalist_sac_m220_ffsched", "SpeedScheduledFF", "m220_regulation"),
         ("generalist_sac_m220_gated", "SpeedScheduledFFGated", "m220_reversal_tracking"),
         ("generalist_sac_m220_restgated", "SpeedScheduledFFRestGated", "m220_regulation"),
+        ("generalist_sac_m220_floorgated", "SpeedScheduledFFFloorGated", "m220_reversal_tracking_slow"),
     ],
 )
 def test_a_residual_over_a_scheduled_base_starts_as_that_base_bit_for_bit(config, base, scenario):
-    """The M220 generalist's fifth, seventh to eleventh configs and Kang's tenth: a base from
+    """The M220 generalist's fifth, seventh to eleventh and thirteenth configs and Kang's tenth: a base from
     registry.BASES (not a baseline) in the loop; its zero-output residual's episode equals the base's
     own, on a tracking scenario and at a set-point, where the model's preview is filled in."""
     (cfg,) = load_config(config)
@@ -614,6 +616,34 @@ def test_a_rest_gated_base_grants_its_residual_all_of_it_at_rest_and_w_while_the
         ws.append(c.w)
     assert shares[:1801] == ws[:1801] and 0.0 < max(ws[:1801]) < 0.2
     assert shares[1801:] == [1.0] * 199 and ws[-1] < ws[1801]
+
+
+def test_a_floor_gated_base_grants_its_residual_all_of_it_at_rest_and_at_least_its_floor_in_motion():
+    """SpeedScheduledFFFloorGated commands as SpeedScheduledFF bit for bit. Its grant is the rest gate's
+    where that is 1 (at rest) or above the floor (fast motion: w reaches 1 at the 0.2 Hz reversals' peak
+    speed of 0.63 rad/s), and the floor (controllers.yaml: 0.5 on the M220) through the 0.05 Hz reversals,
+    where the rest gate grants w < 0.2. A plant without a floor in controllers.yaml is refused by name."""
+    floor = MotionFloorSettings.defaults().residual_floor["m220"]
+    assert floor == 0.5
+    sc = load_scenario("m220_reversal_tracking_slow")
+    episode = validation_episodes(sc.name)[0]
+    base = run_episode(registry.make("SpeedScheduledFFFloorGated"), episode, keep_log=True)
+    plain = run_episode(registry.make("SpeedScheduledFF"), episode, keep_log=True)
+    np.testing.assert_array_equal(base.log["command"], plain.log["command"])
+    fl, rest = registry.make("SpeedScheduledFFFloorGated"), registry.make("SpeedScheduledFFRestGated")
+    for c in (fl, rest):
+        c.reset(EpisodeContext(sc, sc.spec, knowledge_defaults()))
+    got, want = [], []
+    for f_hz, n in ((0.05, 1800), (0.2, 1000)):  # 9 s of the slow reversal, 5 s of the fast one, 0.5 rad
+        for k in range(n):
+            r = 0.5 * np.sin(2 * np.pi * f_hz * k * fl.h)
+            for c in (fl, rest):
+                c.command(r, r)
+            got.append(fl.residual_share())
+            want.append(max(rest.residual_share(), floor) if rest.residual_share() < 1.0 else 1.0)
+    assert got == want
+    assert max(got[1:1800]) < 0.6 and min(got[1:1800]) == floor and max(got[1800:]) == 1.0
+    assert "speed_scheduled_ff_floor_gated" in fl.why_not(load_scenario("kang_ramp"))  # no floor for Kang
 
 
 def test_the_training_envs_apply_the_gated_bases_share_as_evaluation_does():

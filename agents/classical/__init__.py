@@ -9,10 +9,12 @@ from .feedforward import CoulombViscousFF, PIDCoulombViscousFF
 from .lugre_observer import LuGreObserver, LuGreObserverSettings
 from .pid import PD, PID, LabPD, PIDSettings, design_pid
 from .scheduled import (
+    MotionFloorSettings,
     ObserverFilterSettings,
     SpeedScheduled,
     SpeedScheduledBumpless,
     SpeedScheduledFF,
+    SpeedScheduledFFFloorGated,
     SpeedScheduledFFGated,
     SpeedScheduledFFRestGated,
     SpeedScheduledFiltered,
@@ -32,6 +34,7 @@ __all__ = [
     "LabPD",
     "LuGreObserver",
     "LuGreObserverSettings",
+    "MotionFloorSettings",
     "ObserverFilterSettings",
     "PIDCoulombViscousFF",
     "PIDSettings",
@@ -41,6 +44,7 @@ __all__ = [
     "SpeedScheduled",
     "SpeedScheduledBumpless",
     "SpeedScheduledFF",
+    "SpeedScheduledFFFloorGated",
     "SpeedScheduledFFGated",
     "SpeedScheduledFFRestGated",
     "SpeedScheduledFiltered",

@@ -43,7 +43,7 @@ SpeedScheduledFFGated commands as SpeedScheduledFF and, as a residual's base, gr
 high loop's share w of its authority (Controller.residual_share): a residual over it acts on fast motion,
 where the observer's compensation leaves a reversal glitch to learn, and not at set-points nor where PID+FF
 acts alone. SpeedScheduledFFRestGated grants it all of its authority while the reference is at rest (a
-set-point, a hold) and w otherwise.
+set-point, a hold) and w otherwise; SpeedScheduledFFFloorGated at least a floor of it in motion.
 """
 
 from __future__ import annotations
@@ -333,6 +333,64 @@ class SpeedScheduledFFRestGated(SpeedScheduledFFGated):
 
     def residual_share(self) -> float:
         return 1.0 if self.at_rest else self.w
+
+
+@dataclass(frozen=True)
+class MotionFloorSettings(cfg.FamilySettings):
+    """residual_floor: per plant preset, the least share of its authority SpeedScheduledFFFloorGated grants
+    a residual while the reference moves (controllers.yaml `speed_scheduled_ff_floor_gated`, with why)."""
+
+    SECTION: ClassVar[str] = "speed_scheduled_ff_floor_gated"
+    residual_floor: Mapping[str, float]
+
+    @classmethod
+    @cache
+    def defaults(cls) -> MotionFloorSettings:
+        def build(s: Node) -> MotionFloorSettings:
+            f = s.section("residual_floor")
+            return cls({plant: f.number(plant, 0.0, 1.0) for plant in list(f.keys())})
+
+        return cfg.read(cls.SECTION, build)
+
+
+class SpeedScheduledFFFloorGated(SpeedScheduledFFRestGated):
+    """SpeedScheduledFFRestGated that grants a residual at least residual_floor of its authority while the
+    reference moves: all of it at rest, max(w, floor) in motion. Why: under the rest gate w is 0 through
+    the 0.05 Hz reversals (the reference's speed stays under speed_low for seconds before each one), so
+    the twelfth M220 generalists are PID+FF there and tie it; the same networks given authority there at
+    evaluation only make those reversals worse (they never acted there in training), so a residual has
+    to be trained with it (docs/training.md, "Thirteenth attempt"). The same commands as SpeedScheduledFF,
+    bit for bit; only a residual's authority differs."""
+
+    name: ClassVar[str] = "SpeedScheduledFFFloorGated"
+
+    def __init__(
+        self,
+        loops: Callable[[str], Controller],
+        settings: SpeedScheduledSettings | None = None,
+        filtering: ObserverFilterSettings | None = None,
+        tracking: TrackingLowSettings | None = None,
+        motion_floor: MotionFloorSettings | None = None,
+        **overrides: Any,
+    ):
+        super().__init__(loops, settings, filtering, tracking, **overrides)
+        self.motion_floor = motion_floor or MotionFloorSettings.defaults()
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        plant = scenario.spec.name
+        if plant not in self.motion_floor.residual_floor:
+            return f"no residual floor for plant {plant!r} in controllers.yaml {self.motion_floor.SECTION}"
+        return super().why_not(scenario)
+
+    def start(self, ctx: EpisodeContext) -> None:
+        super().start(ctx)
+        self.floor = self.motion_floor.residual_floor[ctx.scenario.spec.name]
+
+    def residual_share(self) -> float:
+        return 1.0 if self.at_rest else max(self.w, self.floor)
+
+    def params(self) -> dict[str, Any]:
+        return {**super().params(), "residual_floor": getattr(self, "floor", None)}
 
 
 @dataclass(frozen=True)
