@@ -200,7 +200,7 @@ def test_a_preview_model_on_a_regulation_scenario_is_given_its_constant_referenc
 
     own = tmp_path / "m220_regulation_preview.yaml"
     own.write_text("extends: m220_regulation\nreference: {type: constant, value: 0.0, preview_steps: 5}\n")
-    models, name = ("agents/models/generalist",), "GenSAC-restgated-sel30-m220_random-s0"
+    models, name = ("agents/models/generalist",), "GenSAC-floorgated-m220_random-s0"
     sc = load_scenario("m220_regulation")
     assert sc.preview_steps == 0 and load_scenario(own).preview_steps == 5
     assert registry.why_not(name, models)(sc) is None and registry.make(name, models).why_not(sc) is None
