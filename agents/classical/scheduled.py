@@ -52,7 +52,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from functools import cache
-from typing import Any, ClassVar
+from typing import Any, ClassVar, TypeVar
 
 import numpy as np
 
@@ -62,6 +62,19 @@ from frictiongym.envs.scenario import TASKS, TRACKING, Scenario
 from .. import settings as cfg
 from ..base import Controller, EpisodeContext, PhysicalController
 from .lugre_observer import LuGreObserver
+
+T = TypeVar("T")
+
+
+def per_plant(section: str, key: str, value: Callable[[Node, str], T]) -> dict[str, T]:
+    """controllers.yaml `section.key`, a mapping of plant presets, read as {plant: value(node, plant)}
+    (value reads and checks one entry; errors name the field)."""
+
+    def build(s: Node) -> dict[str, T]:
+        f = s.section(key)
+        return {plant: value(f, plant) for plant in list(f.keys())}
+
+    return cfg.read(section, build)
 
 
 @dataclass(frozen=True)
@@ -201,11 +214,7 @@ class ObserverFilterSettings(cfg.FamilySettings):
     @classmethod
     @cache
     def defaults(cls) -> ObserverFilterSettings:
-        def build(s: Node) -> ObserverFilterSettings:
-            f = s.section("velocity_filter_s")
-            return cls({plant: f.positive(plant, 1.0) for plant in list(f.keys())})
-
-        return cfg.read(cls.SECTION, build)
+        return cls(per_plant(cls.SECTION, "velocity_filter_s", lambda f, plant: f.positive(plant, 1.0)))
 
 
 class SpeedScheduledFiltered(SpeedScheduledBumpless):
@@ -255,11 +264,7 @@ class TrackingLowSettings(cfg.FamilySettings):
     @classmethod
     @cache
     def defaults(cls) -> TrackingLowSettings:
-        def build(s: Node) -> TrackingLowSettings:
-            f = s.section("low_tracking")
-            return cls({plant: f.string(plant) for plant in list(f.keys())})
-
-        return cfg.read(cls.SECTION, build)
+        return cls(per_plant(cls.SECTION, "low_tracking", lambda f, plant: f.string(plant)))
 
 
 class SpeedScheduledFF(SpeedScheduledFiltered):
@@ -346,11 +351,7 @@ class MotionFloorSettings(cfg.FamilySettings):
     @classmethod
     @cache
     def defaults(cls) -> MotionFloorSettings:
-        def build(s: Node) -> MotionFloorSettings:
-            f = s.section("residual_floor")
-            return cls({plant: f.number(plant, 0.0, 1.0) for plant in list(f.keys())})
-
-        return cfg.read(cls.SECTION, build)
+        return cls(per_plant(cls.SECTION, "residual_floor", lambda f, plant: f.number(plant, 0.0, 1.0)))
 
 
 class SpeedScheduledFFFloorGated(SpeedScheduledFFRestGated):
