@@ -4,6 +4,7 @@ the residual's zero start, asymmetric actor-critic, registry entries."""
 from __future__ import annotations
 
 import csv
+import importlib.util
 import json
 import subprocess
 import sys
@@ -33,6 +34,7 @@ from frictiongym.agents.training import (
     export_model,
     load_config,
     make_training_env,
+    run_config_with,
     sb3_schedule,
     train_many,
     training_env_kwargs,
@@ -467,6 +469,26 @@ def test_sbx_learners_start_at_their_base_and_reload_identically(tmp_path, algo)
         for e in validation_episodes(SCENARIO)[:2]
     ]
     assert np.mean(main) == manifest["validation"]["value"] and manifest["algorithm"] == algo
+
+
+def test_every_bench_training_setup_is_a_valid_run_config():
+    """configs/bench/training.yaml: each setup, applied to the config and scenario of the committed
+    measurements (docs/training.md), parses into a run config with its algorithm; a mistyped key fails
+    here, not after the setups before it have trained. sbx's setups need the optional extra."""
+    spec = importlib.util.spec_from_file_location("bench_training", ROOT / "scripts/bench_training.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    _, setups = bench.load_setups(ROOT / "configs/bench/training.yaml")
+    has_sbx = importlib.util.find_spec("sbx") is not None
+    checked = 0
+    for name, (algorithm, overrides) in setups.items():
+        if (algorithm or "").startswith("sbx.") and not has_sbx:
+            continue
+        cfg = run_config_with("residual_sac", "m220_reversal_tracking", overrides, algorithm)
+        assert cfg.algorithm == (algorithm or "SAC"), name
+        assert cfg.n_envs == overrides.get("n_envs", 1), name
+        checked += 1
+    assert checked >= 5  # the SB3 setups run without the extra
 
 
 @pytest.mark.slow
