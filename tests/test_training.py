@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import importlib.util
+import itertools
 import json
 import subprocess
 import sys
@@ -194,6 +195,36 @@ def test_a_residual_with_zero_output_is_bit_identical_to_its_base(tmp_path):
         assert got.metrics == ref.metrics, algo
         for k in ref.log:
             np.testing.assert_array_equal(got.log[k], ref.log[k])
+
+
+def test_a_lin_learning_rate_decays_linearly_to_zero_over_the_run(tmp_path):
+    """learning_rate "lin_<rate>" (rl-zoo3's spelling): the optimiser's rate is <rate> at the start, half
+    of it halfway through total_timesteps and 0 at the end (SB3 passes the progress remaining, 1 -> 0);
+    the manifest keeps the string as written."""
+    hyper = {**HYPER["SAC"], "learning_rate": "lin_2e-3"}
+    path = write_config(tmp_path, "SAC", hyperparams=hyper)
+    (cfg,) = load_config(path)
+    assert cfg.hyperparams["learning_rate"] == "lin_2e-3"
+    model = build_model(cfg, make_training_env(cfg, 0), 0, None)
+    assert [model.lr_schedule(p) for p in (1.0, 0.5, 0.0)] == pytest.approx([2e-3, 1e-3, 0.0])
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class Rates(BaseCallback):
+        def _on_step(self) -> bool:
+            seen.append(self.model.actor.optimizer.param_groups[0]["lr"])
+            return True
+
+    seen: list[float] = []
+    model.learn(cfg.total_timesteps, callback=Rates())  # SB3 sets the rate before each update
+    assert seen[1] == pytest.approx(2e-3, rel=0.01) and seen[-1] < 0.01 * 2e-3
+    assert all(b <= a for a, b in itertools.pairwise(seen))
+
+
+@pytest.mark.parametrize("bad", ["lin_", "lin_x", "lin_-1e-3", "cos_3e-4", -1e-3, True])
+def test_a_bad_learning_rate_is_refused_by_name(tmp_path, bad):
+    path = write_config(tmp_path, "SAC", hyperparams={**HYPER["SAC"], "learning_rate": bad})
+    with pytest.raises(ConfigError, match="learning_rate"):
+        load_config(path)
 
 
 def test_training_env_uses_its_own_seeds_and_the_base_in_the_loop(tmp_path):

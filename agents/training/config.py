@@ -7,6 +7,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import inspect
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -307,6 +308,33 @@ def _check_hyperparams(algo: str, hyper: dict[str, Any], node: Node) -> None:
     act = pk.get("activation_fn")
     if act is not None and act not in ACTIVATIONS:
         raise node.error("policy_kwargs.activation_fn", f"expected one of {list(ACTIVATIONS)}, got {act!r}")
+    if "learning_rate" in hyper:
+        try:
+            learning_rate(hyper["learning_rate"])
+        except ValueError as e:
+            raise node.error("learning_rate", str(e)) from None
+
+
+def learning_rate(value: float | str) -> float | Callable[[float], float]:
+    """A learning_rate hyper-parameter as the algorithm takes it: a number, or "lin_<rate>" (rl-zoo3's
+    spelling) for a rate decaying linearly from <rate> to 0 over the run's total_timesteps (SB3 calls it
+    with the progress remaining, 1 -> 0)."""
+    if isinstance(value, bool):
+        raise ValueError(f"expected a positive number or 'lin_<rate>', got {value!r}")
+    if isinstance(value, int | float):
+        if value <= 0:
+            raise ValueError(f"expected a positive number or 'lin_<rate>', got {value!r}")
+        return float(value)
+    if isinstance(value, str) and value.startswith("lin_"):
+        try:
+            start = float(value[4:])
+        except ValueError:
+            start = -1.0
+        if start > 0:
+            from stable_baselines3.common.utils import LinearSchedule
+
+            return LinearSchedule(start, 0.0, 1.0)
+    raise ValueError(f"expected a positive number or 'lin_<rate>' (e.g. lin_3e-4), got {value!r}")
 
 
 def scenario_overrides(cfg: RunConfig) -> dict[str, Any]:

@@ -14,7 +14,7 @@ from ..learned import (
     algorithm_class,
     is_jax,
 )
-from .config import RunConfig, sb3_schedule
+from .config import RunConfig, learning_rate, sb3_schedule
 
 
 # ------------------------------------------------------------------------------------------- model
@@ -24,6 +24,8 @@ def build_model(cfg: RunConfig, venv: Any, seed: int, tb: str | None) -> Any:
     import torch
 
     hyper = dict(cfg.hyperparams)
+    if "learning_rate" in hyper:  # a number, or "lin_<rate>": a linear decay to 0 (config.learning_rate)
+        hyper["learning_rate"] = learning_rate(hyper["learning_rate"])
     if cfg.update_to_data is not None:
         hyper["train_freq"], hyper["gradient_steps"] = sb3_schedule(cfg.update_to_data, cfg.n_envs)
     pk = dict(hyper.pop("policy_kwargs", {}) or {})
