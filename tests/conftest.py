@@ -1,11 +1,23 @@
 """Test markers: `slow` marks a test that trains, runs a suite or a study (identification, a stiff ODE
 reference), sends real signals or starts a service; the inner loop is `python -m pytest -m "not slow"`,
 CI runs everything. Helpers shared by test modules: `lockstep` (single vs vector env bit for bit) and
-`write_config` (a small training config, test_training and test_learned)."""
+`write_config` (a small training config, test_training and test_learned), `load_script` (a front end of
+scripts/ as a module, for its functions)."""
 
+import importlib.util
 from pathlib import Path
+from types import ModuleType
 
 import yaml
+
+
+def load_script(name: str) -> ModuleType:
+    """scripts/<name>.py loaded as a module (scripts/ is not a package), its main() not run."""
+    path = Path(__file__).parents[1] / "scripts" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def pytest_configure(config):

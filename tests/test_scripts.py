@@ -1,6 +1,5 @@
 """The command-line front ends run and write what they promise."""
 
-import importlib.util
 import json
 import subprocess
 import sys
@@ -9,6 +8,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 import pytest
+from conftest import load_script
 
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.vector import ServoVectorEnv
@@ -72,18 +72,11 @@ def test_bench_physics_prints_a_ratio_per_plant():
     assert all(0.1 < float(ln.split()[-1]) < 10 for ln in lines)
 
 
-def _bench_envs():
-    spec = importlib.util.spec_from_file_location("bench_envs", ROOT / "scripts/bench_envs.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.mark.parametrize("scenario", ["m220_regulation", "kang_regulation", "flexible_speed_step"])
 def test_bench_envs_bare_loops_step_the_envs_physics(scenario):
     """The speed ratios compare like with like: with a zero action, the bare loops (single and Batch)
     follow the env's own trajectory bit for bit, from the env's initial state."""
-    bench = _bench_envs()
+    bench = load_script("bench_envs")
     env = ServoEnv(scenario)
     env.reset(seed=0)
     bare, data = bench.bare_single(env.core)

@@ -17,7 +17,7 @@ import yaml
 
 pytest.importorskip("stable_baselines3")
 pytest.importorskip("sb3_contrib")
-from conftest import HYPER, SCENARIO, write_config
+from conftest import HYPER, SCENARIO, load_script, write_config
 
 from frictiongym.agents import registry
 from frictiongym.agents.base import EpisodeContext
@@ -506,10 +506,7 @@ def test_every_bench_training_setup_is_a_valid_run_config():
     """configs/bench/training.yaml: each setup, applied to the config and scenario of the committed
     measurements (docs/training.md), parses into a run config with its algorithm; a mistyped key fails
     here, not after the setups before it have trained. sbx's setups need the optional extra."""
-    spec = importlib.util.spec_from_file_location("bench_training", ROOT / "scripts/bench_training.py")
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
-    _, setups = bench.load_setups(ROOT / "configs/bench/training.yaml")
+    _, setups = load_script("bench_training").load_setups(ROOT / "configs/bench/training.yaml")
     has_sbx = importlib.util.find_spec("sbx") is not None
     checked = 0
     for name, (algorithm, overrides) in setups.items():
