@@ -7,6 +7,7 @@ import csv
 import importlib.util
 import itertools
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -220,7 +221,9 @@ def test_a_lin_learning_rate_decays_linearly_to_zero_over_the_run(tmp_path):
     assert all(b <= a for a, b in itertools.pairwise(seen))
 
 
-@pytest.mark.parametrize("bad", ["lin_", "lin_x", "lin_-1e-3", "cos_3e-4", -1e-3, True])
+@pytest.mark.parametrize(
+    "bad", ["lin_", "lin_x", "lin_-1e-3", "lin_inf", "lin_nan", "cos_3e-4", -1e-3, True, math.nan, math.inf]
+)
 def test_a_bad_learning_rate_is_refused_by_name(tmp_path, bad):
     path = write_config(tmp_path, "SAC", hyperparams={**HYPER["SAC"], "learning_rate": bad})
     with pytest.raises(ConfigError, match="learning_rate"):

@@ -7,6 +7,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import inspect
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -322,19 +323,19 @@ def learning_rate(value: float | str) -> float | Callable[[float], float]:
     if isinstance(value, bool):
         raise ValueError(f"expected a positive number or 'lin_<rate>', got {value!r}")
     if isinstance(value, int | float):
-        if value <= 0:
-            raise ValueError(f"expected a positive number or 'lin_<rate>', got {value!r}")
+        if not math.isfinite(value) or value <= 0:
+            raise ValueError(f"expected a positive finite number or 'lin_<rate>', got {value!r}")
         return float(value)
     if isinstance(value, str) and value.startswith("lin_"):
         try:
             start = float(value[4:])
         except ValueError:
             start = -1.0
-        if start > 0:
+        if math.isfinite(start) and start > 0:
             from stable_baselines3.common.utils import LinearSchedule
 
             return LinearSchedule(start, 0.0, 1.0)
-    raise ValueError(f"expected a positive number or 'lin_<rate>' (e.g. lin_3e-4), got {value!r}")
+    raise ValueError(f"expected a positive finite number or 'lin_<rate>' (e.g. lin_3e-4), got {value!r}")
 
 
 def scenario_overrides(cfg: RunConfig) -> dict[str, Any]:
