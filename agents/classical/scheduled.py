@@ -77,6 +77,13 @@ def per_plant(section: str, key: str, value: Callable[[Node, str], T]) -> dict[s
     return cfg.read(section, build)
 
 
+def missing_entry(scenario: Scenario, table: Mapping[str, Any], what: str, section: str) -> str | None:
+    """Why a schedule cannot run on the scenario's plant: its controllers.yaml table (section) has no entry
+    for the plant (None when it has one)."""
+    plant = scenario.spec.name
+    return None if plant in table else f"no {what} for plant {plant!r} in controllers.yaml {section}"
+
+
 @dataclass(frozen=True)
 class Schedule:
     """One plant's blend: the loop below speed_low and the one above speed_high (built-in controller
@@ -247,10 +254,9 @@ class SpeedScheduledFiltered(SpeedScheduledBumpless):
         return low, high
 
     def why_not(self, scenario: Scenario) -> str | None:
-        plant = scenario.spec.name
-        if plant not in self.filtering.velocity_filter_s:
-            return f"no velocity filter for plant {plant!r} in controllers.yaml {self.filtering.SECTION}"
-        return super().why_not(scenario)
+        f = self.filtering
+        reason = missing_entry(scenario, f.velocity_filter_s, "velocity filter", f.SECTION)
+        return reason or super().why_not(scenario)
 
 
 @dataclass(frozen=True)
@@ -295,10 +301,9 @@ class SpeedScheduledFF(SpeedScheduledFiltered):
         return names
 
     def why_not(self, scenario: Scenario) -> str | None:
-        plant = scenario.spec.name
-        if plant not in self.tracking.low_tracking:
-            return f"no tracking loop for plant {plant!r} in controllers.yaml {self.tracking.SECTION}"
-        return super().why_not(scenario)
+        t = self.tracking
+        reason = missing_entry(scenario, t.low_tracking, "tracking loop", t.SECTION)
+        return reason or super().why_not(scenario)
 
 
 class SpeedScheduledFFGated(SpeedScheduledFF):
@@ -378,10 +383,9 @@ class SpeedScheduledFFFloorGated(SpeedScheduledFFRestGated):
         self.motion_floor = motion_floor or MotionFloorSettings.defaults()
 
     def why_not(self, scenario: Scenario) -> str | None:
-        plant = scenario.spec.name
-        if plant not in self.motion_floor.residual_floor:
-            return f"no residual floor for plant {plant!r} in controllers.yaml {self.motion_floor.SECTION}"
-        return super().why_not(scenario)
+        m = self.motion_floor
+        reason = missing_entry(scenario, m.residual_floor, "residual floor", m.SECTION)
+        return reason or super().why_not(scenario)
 
     def start(self, ctx: EpisodeContext) -> None:
         super().start(ctx)
