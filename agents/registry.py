@@ -83,6 +83,8 @@ BASES: dict[str, Callable[[], Controller]] = {
     "SpeedScheduledFFRestGated": partial(SpeedScheduledFFRestGated, builtin),
     "SpeedScheduledFFFloorGated": partial(SpeedScheduledFFFloorGated, builtin),
     "TaskScheduled": partial(TaskScheduled, builtin),
+    "SF+relay/residual-observed": partial(StateFeedback, "relay", observe_residual=True),
+    "SF+highgain/residual-observed": partial(StateFeedback, "highgain", observe_residual=True),
 }
 
 

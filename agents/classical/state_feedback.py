@@ -172,7 +172,14 @@ class StateFeedback(Controller):
     friction torque estimate u_f = M_f/(k_m k_i) acts on the estimated output ŷ = C x̂:
     high gain: M_f = F·ŷ/ε (|ŷ| < ε) else F·sgn(ŷ); relay: 0 (|ŷ| < ε) else F·sgn(ŷ).
     Continuous design (§4.1, its observer discretised exactly over the hold period) when the scenario
-    samples fast, else the digital design (§4.2) with the latest-measurement observer."""
+    samples fast, else the digital design (§4.2) with the latest-measurement observer.
+
+    observe_residual (a residual base, not Wallenborg's loop): the observer is also fed what a residual
+    added to this loop's command, read one sample later from the held command in the observation (the
+    observer's update for a period is made at the next sample, with the same arithmetic). Wallenborg's
+    observer sees u0 only, so a residual reaches the plant but not the estimate x̂ the state feedback and
+    the relay act on (docs/training.md, flexible attempt 2). With no residual the commands are this
+    loop's without it, bit for bit."""
 
     name: ClassVar[str] = "SF"
     sensor_kinds: ClassVar[tuple[str, ...]] = ("tacho",)
@@ -184,6 +191,7 @@ class StateFeedback(Controller):
         sensor: str = "y1",
         *,
         settings: StateFeedbackSettings | None = None,
+        observe_residual: bool = False,
     ):
         if compensation not in COMPENSATION:
             raise ValueError(f"compensation {compensation!r} not in {COMPENSATION}")
@@ -194,9 +202,10 @@ class StateFeedback(Controller):
         )
         self.compensation, self.sensor, self.w_cl = compensation, sensor, self.settings.w_cl
         suffix = {"none": "", "relay": "+relay", "highgain": "+highgain"}[compensation]
+        self.observe_residual = observe_residual
         self.name = (
             f"SF{suffix}" if (w_cl is None and sensor == "y1") else f"SF(w{self.w_cl:g},{sensor}){suffix}"
-        )
+        ) + ("/residual-observed" if observe_residual else "")
 
     def why_not(self, scenario: Scenario) -> str | None:
         spec = scenario.spec
@@ -227,6 +236,7 @@ class StateFeedback(Controller):
         self.F_pos, self.F_neg = scale * F["static_pos"], scale * F["static_neg"]
         self.gain = spec.actuator_gain  # k_m·k_i, N·m/V
         self.x = np.zeros(3)  # x̂(k|k-1) (digital) or x̂(t_k) (continuous)
+        self.pending: tuple[np.ndarray, float, float, float] | None = None  # last sample's update inputs
         self.tacho = "tacho1" if self.sensor == "y1" else "tacho2"
 
     def friction_command(self, y_est: float) -> float:
@@ -243,17 +253,23 @@ class StateFeedback(Controller):
         o = decode_observation(self.sc, obs, trusted=True)  # the env's own observation
         y, yr = o["sensors"][self.tacho], o["reference"]
         d = self.design
+        if self.pending is not None:  # the last period's observer update, with what was held over it
+            xe, u0, y_last, held = self.pending
+            if self.observe_residual:
+                u0 += o["previous_command"] - held  # the residual's part of the held command (V)
+            if self.continuous:
+                self.x = self.Ad @ xe + self.Bd @ np.array([u0, y_last])
+            else:
+                self.x = d.Phi @ xe + d.Gamma.ravel() * u0
         umax = self.settings.u_max_v
-        if self.continuous:
-            xe = self.x
-            u0 = float(np.clip(d.lr * yr - (d.L @ xe).item(), -umax, umax))
-            self.x = self.Ad @ xe + self.Bd @ np.array([u0, y])
-        else:
-            xe = self.x + d.K.ravel() * (y - (d.C @ self.x).item())
-            u0 = float(np.clip(d.lr * yr - (d.L @ xe).item(), -umax, umax))
-            self.x = d.Phi @ xe + d.Gamma.ravel() * u0
+        xe = self.x if self.continuous else self.x + d.K.ravel() * (y - (d.C @ self.x).item())
+        u0 = float(np.clip(d.lr * yr - (d.L @ xe).item(), -umax, umax))
         u = u0 + self.friction_command((d.C @ xe).item())
-        return np.array([u / self.sc.action_scale], dtype=np.float32)
+        action = np.array([u / self.sc.action_scale], dtype=np.float32)
+        # what the env will hold if nothing is added (its clip, read back as decode_observation reads it)
+        held = float(np.clip(action, -1.0, 1.0)[0] * self.sc.action_scale)
+        self.pending = (xe, u0, y, held)
+        return action
 
     def params(self) -> dict[str, Any]:
         d = getattr(self, "design", None)
