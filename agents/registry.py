@@ -85,6 +85,9 @@ BASES: dict[str, Callable[[], Controller]] = {
     "TaskScheduled": partial(TaskScheduled, builtin),
     "SF+relay/residual-observed": partial(StateFeedback, "relay", observe_residual=True),
     "SF+highgain/residual-observed": partial(StateFeedback, "highgain", observe_residual=True),
+    # Wallenborg's loop designed for ω_cl = 9 rad/s instead of controllers.yaml's 12: on the flexible speed
+    # steps it rings less (docs/training.md, flexible attempt 12); the number is part of the name.
+    "SF(w9,y1)+relay/residual-observed": partial(StateFeedback, "relay", w_cl=9.0, observe_residual=True),
 }
 
 

@@ -582,13 +582,15 @@ def test_bench_training_prints_speed_time_to_beat_and_ratios(tmp_path):
         ("generalist_sac_m220_floorgated", "SpeedScheduledFFFloorGated", "m220_reversal_tracking_slow"),
         ("generalist_sac_flexible_ro", "SF+relay/residual-observed", "flexible_zero_speed_hard"),
         ("generalist_sac_flexible_ro", "SF+relay/residual-observed", "flexible_speed_reversal"),
+        ("generalist_sac_flexible_ro_w9", "SF(w9,y1)+relay/residual-observed", "flexible_speed_step"),
     ],
 )
 def test_a_residual_over_a_scheduled_base_starts_as_that_base_bit_for_bit(config, base, scenario):
-    """The M220 generalist's fifth, seventh to eleventh and thirteenth configs, Kang's tenth and the flexible
-    servo's tenth: a base from registry.BASES (not a baseline) in the loop; its zero-output residual's
-    episode equals the base's own, on a tracking scenario and at a set-point, where the model's preview is
-    filled in (the flexible servo has none; its base's observer reads the held command back)."""
+    """The M220 generalist's fifth, seventh to eleventh and thirteenth configs, Kang's tenth and the
+    flexible servo's tenth and twelfth: a base from registry.BASES (not a baseline) in the loop; its
+    zero-output residual's episode equals the base's own, on a tracking scenario and at a set-point, where
+    the model's preview is filled in (the flexible servo has none; its base's observer reads the held
+    command back)."""
     (cfg,) = load_config(config)
     assert cfg.base == base and cfg.base not in registry.BUILTIN
     episode = validation_episodes(scenario)[0]
