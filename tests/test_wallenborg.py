@@ -134,13 +134,12 @@ def test_the_loop_below_the_regulator_stability_boundary_rings_less_on_speed_ste
     0.068 V rms, IAE 1.01 / 0.86 against 1.51 / 1.63 V·s."""
     from frictiongym.agents import registry
 
-    assert np.all(regulator_poles(SPEC, 9.0).real < 0)
-    assert np.isnan(describing_function_cycle(SPEC, 9.0, 5e-4)["omega"])
+    base = "SF(w9,y1)+relay/residual-observed"
+    w_cl = registry.make(base).w_cl
+    assert w_cl == 9.0 and np.all(regulator_poles(SPEC, w_cl).real < 0)
+    assert np.isnan(describing_function_cycle(SPEC, w_cl, 5e-4)["omega"])
     for seed in (500000, 500001):
         episode = Episode("flexible_speed_step", seed, True)
-        low, default = (
-            run_episode(registry.make(n), episode).metrics
-            for n in ("SF(w9,y1)+relay/residual-observed", "SF+relay")
-        )
+        low, default = (run_episode(registry.make(n), episode).metrics for n in (base, "SF+relay"))
         assert low["limit_cycle_amp"] < 0.2 * default["limit_cycle_amp"]
         assert low["effort_rms"] < 0.8 * default["effort_rms"] and low["iae"] < default["iae"]
