@@ -40,10 +40,11 @@ ZOO_COMMANDS = ("train", "enjoy", "record_video")
 
 class Residual(ResidualEnv):
     """Zoo `env_wrapper`: residual mode over the built-in controller `base` with authority `alpha` (a
-    fraction of the full command). A base that brings hardware of its own (plant_overrides, e.g. RDFC's
-    analog rate feedback) is refused: the zoo builds the env with gym.make, before any wrapper."""
+    fraction of the full command), and the residual's own smoothness weight (ResidualEnv). A base that
+    brings hardware of its own (plant_overrides, e.g. RDFC's analog rate feedback) is refused: the zoo
+    builds the env with gym.make, before any wrapper."""
 
-    def __init__(self, env: gym.Env, base: str, alpha: float):
+    def __init__(self, env: gym.Env, base: str, alpha: float, smoothness: float = 0.0):
         controller = base_controller(base)
         scenario = env.unwrapped.scenario
         if (reason := controller.why_not(scenario)) is not None:
@@ -54,7 +55,7 @@ class Residual(ResidualEnv):
                 f"{base} brings hardware ({hardware}) that an env made by "
                 "gym.make lacks; choose a base without it, or train with scripts/train.py",
             )
-        super().__init__(env, controller, alpha)
+        super().__init__(env, controller, alpha, smoothness=smoothness)
 
 
 def _callback_base() -> type:

@@ -276,22 +276,31 @@ def _single_env_form(cfg):
 
     def one(i):
         base = registry.make(cfg.base)
-        env = ResidualEnv(ServoEnv(cfg.scenario, **kw), base, cfg.alpha, cfg.inputs.differences)
+        env = ResidualEnv(
+            ServoEnv(cfg.scenario, **kw),
+            base,
+            cfg.alpha,
+            cfg.inputs.differences,
+            smoothness=cfg.residual_smoothness,
+        )
         return type("Scheduled", (_Scheduled, gym.Wrapper), {})(env, i, cfg.n_envs)
 
     return DummyVecEnv([lambda i=i: one(i) for i in range(cfg.n_envs)])
 
 
-@pytest.mark.parametrize("differences", [False, True])
-def test_batched_training_env_equals_sb3_dummy_vec_env_of_single_envs(tmp_path, differences):
+@pytest.mark.parametrize(("differences", "smoothness"), [(False, 0.0), (True, 0.0), (False, 50.0)])
+def test_batched_training_env_equals_sb3_dummy_vec_env_of_single_envs(tmp_path, differences, smoothness):
     """The batched training env gives DummyVecEnv's observations, rewards (float32), dones and terminal
     observations over single residual envs, bit for bit, across episode ends, for float32 actions and
     the float64 ones exploration noise makes; and SAC trained on either learns the same network. With
-    the differences inputs too (two more columns, the same in both forms)."""
+    the differences inputs too (two more columns, the same in both forms), and with the residual's own
+    smoothness penalty."""
     import torch
 
-    (cfg,) = load_config(write_config(tmp_path, "SAC", n_envs=3, observation={"differences": differences}))
-    assert cfg.inputs.differences == differences
+    residual = {"base": "PID", "alpha": 0.1, "smoothness": smoothness}
+    obs = {"differences": differences}
+    (cfg,) = load_config(write_config(tmp_path, "SAC", n_envs=3, observation=obs, residual=residual))
+    assert (cfg.inputs.differences, cfg.residual_smoothness) == (differences, smoothness)
     ref, new = _single_env_form(cfg), make_training_env(cfg, 0)
     assert new.observation_space.shape[0] == new.core.obs_dim + 1 + 2 * differences
     assert np.array_equal(ref.reset(), new.reset())
@@ -315,6 +324,37 @@ def test_batched_training_env_equals_sb3_dummy_vec_env_of_single_envs(tmp_path, 
         model.learn(300)
         models.append(torch.nn.utils.parameters_to_vector(model.policy.parameters()))
     assert torch.equal(*models)
+
+
+def test_the_residual_smoothness_prices_the_residuals_change_and_nothing_else(tmp_path):
+    """residual.smoothness w subtracts w·(a - a_prev)² from the reward, a the policy's action clipped to
+    [-1, 1] and a_prev 0 at each episode's start (where a residual starts), and changes nothing else: the
+    same actions give the same observations and dones as without it. A held residual costs nothing after
+    its first step; an alternating one 4·w·a² per step."""
+    w = 50.0
+    envs = []
+    for smoothness in (0.0, w):
+        residual = {"base": "PID", "alpha": 0.1, "smoothness": smoothness}
+        (cfg,) = load_config(write_config(tmp_path, "SAC", n_envs=2, residual=residual))
+        envs.append(make_training_env(cfg, 0))
+    plain, priced = envs
+    assert np.array_equal(plain.reset(), priced.reset())
+    a_prev, ends = np.zeros((2, 1)), 0
+    for t in range(260):  # the 250-step episodes end at t = 249
+        held = 0.5 if t < 100 else 0.5 * (-1) ** t
+        a = np.array([[held], [1.7 if t % 3 else -0.2]], dtype=np.float32)  # 1.7: clipped to 1
+        (o1, r1, d1, _), (o2, r2, d2, _) = plain.step(a), priced.step(a)
+        assert np.array_equal(o1, o2) and np.array_equal(d1, d2)
+        clipped = np.clip(a.astype(np.float64), -1.0, 1.0)
+        expected = w * ((clipped - a_prev) ** 2).ravel()
+        np.testing.assert_allclose(r1 - r2, expected, rtol=1e-5, atol=1e-4)
+        if 1 <= t < 100:
+            assert r1[0] == r2[0]  # held: free
+        if t >= 101 and t != 250:
+            assert r1[0] - r2[0] == pytest.approx(4 * w * 0.25, rel=1e-5)
+        a_prev = np.where(d1[:, None], 0.0, clipped)  # a new episode starts from a_prev = 0
+        ends += int(d1.sum())
+    assert ends == 2
 
 
 @pytest.mark.parametrize(
@@ -385,6 +425,8 @@ def test_registry_skips_scenarios_with_another_observation(tmp_path):
         ({"validation": {"scenarios": ["kang_ramp"]}}, r"validation\.scenarios.*kang_robot"),
         ({"validation": {"scenarios": ["flexible_nope"]}}, r"validation\.scenarios"),
         ({"validation": {"scenarios": "flexible_drift"}}, r"validation\.scenarios.*list"),
+        ({"residual": {"base": "PID", "smoothness": -1.0}}, r"residual\.smoothness"),
+        ({"residual": {"base": None, "smoothness": 5.0}}, r"residual\.smoothness.*residual mode"),
     ],
 )
 def test_config_errors_name_the_field(tmp_path, entry, field):

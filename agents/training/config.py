@@ -72,6 +72,9 @@ class RunConfig:
     # the training envs' random-reference keys replaced (e.g. segments, segment_s); validation and every
     # evaluation keep the scenario's own references
     reference: dict[str, Any] = field(default_factory=dict)
+    # residual mode: weight of the residual's own smoothness penalty, w·(a - a_prev)² on the policy's
+    # action in [-1, 1] per control period (vec_env.residual_smoothness); 0: none
+    residual_smoothness: float = 0.0
     source: str = ""  # the config file
 
     def as_dict(self) -> dict[str, Any]:
@@ -232,6 +235,7 @@ def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) 
         hyperparams=hyper,
         eval_scenarios=_eval_scenarios(v, trained),
         reference=reference,
+        residual_smoothness=_residual_smoothness(res, base),
         source=source,
     )
     if base is None:
@@ -260,6 +264,17 @@ def _training_reference(c: Node, scenario: Scenario) -> dict[str, Any]:
             e.field if e.field.startswith("reference") else f"reference.{e.field}", e.message
         ) from None
     return copy.deepcopy(ref)
+
+
+def _residual_smoothness(res: Node, base: str | None) -> float:
+    """residual.smoothness: >= 0, and only with a base (without one the scenario's reward.smoothness
+    prices the policy's whole command)."""
+    w = res.nonneg("smoothness")
+    if w and base is None:
+        raise res.error(
+            "smoothness", "applies in residual mode (set residual.base), or use reward.smoothness"
+        )
+    return w
 
 
 def _eval_scenarios(v: Node, scenario: Scenario) -> tuple[str, ...]:

@@ -27,7 +27,7 @@ from ..learned import (
 from ..registry import base_controller
 from ..settings import knowledge_defaults
 from .config import RunConfig, scenario_overrides
-from .vec_env import TrainingVecEnv
+from .vec_env import TrainingVecEnv, residual_smoothness
 
 
 # ------------------------------------------------------------------------------------------- env
@@ -35,11 +35,22 @@ class ResidualEnv(gym.Wrapper):
     """A scenario's env as a learned compensator sees it: in residual mode the base controller runs in the
     loop (u = clip(u_base + α·a)) and the observation is extended with its action (policy_observation);
     without a base, the env as it is: the single-env form of a training env (agents/training/vec_env.py),
-    for rl-zoo (agents/zoo.py)."""
+    for rl-zoo (agents/zoo.py). `smoothness` > 0 (residual mode) subtracts residual_smoothness from the
+    reward."""
 
-    def __init__(self, env: gym.Env, base: Controller | None, alpha: float, differences: bool = False):
+    def __init__(
+        self,
+        env: gym.Env,
+        base: Controller | None,
+        alpha: float,
+        differences: bool = False,
+        smoothness: float = 0.0,
+    ):
         super().__init__(env)
-        self.base, self.alpha = base, alpha
+        if smoothness and base is None:
+            raise ValueError("the residual smoothness applies in residual mode (with a base controller)")
+        self.base, self.alpha, self.smoothness = base, alpha, smoothness
+        self.a_prev = np.zeros(1)
         self.differences = difference_indices(env.unwrapped.scenario) if differences else None
         n = model_input_size(env.observation_space.shape[0], base is not None, differences)
         self.observation_space = spaces.Box(-np.inf, np.inf, (n,), np.float32)
@@ -47,6 +58,7 @@ class ResidualEnv(gym.Wrapper):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         obs, info = self.env.reset(seed=seed, options=options)
+        self.a_prev = np.zeros(1)
         return self._observe(obs, reset=True), info
 
     def _observe(self, obs: np.ndarray, reset: bool = False) -> np.ndarray:
@@ -65,6 +77,10 @@ class ResidualEnv(gym.Wrapper):
         else:
             u = residual_action(self.u_base, action, self.alpha, self.base.residual_share())
         obs, reward, term, trunc, info = self.env.step(np.asarray(u, dtype=np.float32).reshape(1))
+        if self.smoothness:
+            a = np.asarray(action).reshape(1)
+            reward = float(reward - residual_smoothness(a, self.a_prev, self.smoothness)[0])
+            self.a_prev = np.clip(np.asarray(a, dtype=np.float64), -1.0, 1.0)
         return self._observe(obs), reward, term, trunc, info
 
 
@@ -97,6 +113,7 @@ def make_training_env(cfg: RunConfig, seed: int, nthread: int = 1) -> TrainingVe
         alpha=cfg.alpha,
         nthread=nthread,
         differences=cfg.inputs.differences,
+        smoothness=cfg.residual_smoothness,
         **kw,
     )
 

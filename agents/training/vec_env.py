@@ -39,6 +39,16 @@ def episode_seed(run_seed: int, env: int, episode: int, n_envs: int) -> int:
     return TRAINING_SEEDS + run_seed * SEEDS_PER_RUN + episode * n_envs + env
 
 
+def residual_smoothness(action: np.ndarray, previous: np.ndarray, weight: float) -> np.ndarray:
+    """The residual's own smoothness penalty, w·(a - a_prev)² on the policy's actions clipped to [-1, 1]
+    (float64, elementwise): it prices the residual's sample-to-sample change, its dither, which the
+    scenario's smoothness term (on the whole command) cannot tell from its base's own switching (a relay).
+    a_prev is 0 at an episode's start, where a residual starts."""
+    a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
+    d = a - np.clip(np.asarray(previous, dtype=np.float64), -1.0, 1.0)
+    return weight * (d * d)
+
+
 def _vec_env_base() -> type:
     from stable_baselines3.common.vec_env.base_vec_env import VecEnv
 
@@ -77,6 +87,7 @@ class TrainingVecEnv(_vec_env_base()):
         overrides: dict | None,
         nthread: int = 1,
         differences: bool = False,
+        smoothness: float = 0.0,
     ):
         if not 0 <= run_seed < RUN_SEEDS:
             raise ValueError(f"run seed {run_seed} outside 0-{RUN_SEEDS - 1} (the training seed range)")
@@ -94,6 +105,8 @@ class TrainingVecEnv(_vec_env_base()):
         space = spaces.Box(-np.inf, np.inf, (size,), np.float32)
         super().__init__(n_envs, space, self.venv.single_action_space)
         self._actions = np.zeros((n_envs, 1), dtype=np.float32)
+        self.smoothness = smoothness  # residual_smoothness's weight (residual mode)
+        self.a_prev = np.zeros((n_envs, 1))  # each env's previous policy action (residual_smoothness)
 
     # ------------------------------------------------------------------ episodes
     def _start(self, ids: np.ndarray) -> np.ndarray:
@@ -101,6 +114,7 @@ class TrainingVecEnv(_vec_env_base()):
         seeds = [episode_seed(self.run_seed, int(i), int(self.episodes[i]), self.num_envs) for i in ids]
         self.episodes[ids] += 1
         self.seeds[ids] = seeds
+        self.a_prev[ids] = 0.0
         obs = self.core.reset(ids, seeds)
         if self.bases is not None:
             ctx = EpisodeContext(self.scenario, self.scenario.spec, self.knowledge)
@@ -133,6 +147,9 @@ class TrainingVecEnv(_vec_env_base()):
             shares = np.array([[b.residual_share()] for b in self.bases])
             u = residual_action(np.concatenate(self.u_base).reshape(n, 1), a, self.alpha, shares).reshape(n)
         obs, reward, term, trunc, _ = self.core.step(u)
+        if self.smoothness:
+            reward = reward - residual_smoothness(a, self.a_prev, self.smoothness).reshape(n)
+            self.a_prev = np.clip(np.asarray(a, dtype=np.float64), -1.0, 1.0)
         obs = self._observe(range(self.num_envs), obs)
         done = term | trunc
         infos: list[dict[str, Any]] = [
