@@ -78,9 +78,8 @@ class ResidualEnv(gym.Wrapper):
             u = residual_action(self.u_base, action, self.alpha, self.base.residual_share())
         obs, reward, term, trunc, info = self.env.step(np.asarray(u, dtype=np.float32).reshape(1))
         if self.smoothness:
-            a = np.asarray(action).reshape(1)
-            reward = float(reward - residual_smoothness(a, self.a_prev, self.smoothness)[0])
-            self.a_prev = np.clip(np.asarray(a, dtype=np.float64), -1.0, 1.0)
+            penalty, self.a_prev = residual_smoothness(np.reshape(action, 1), self.a_prev, self.smoothness)
+            reward = float(reward - penalty[0])
         return self._observe(obs), reward, term, trunc, info
 
 

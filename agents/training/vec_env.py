@@ -39,14 +39,17 @@ def episode_seed(run_seed: int, env: int, episode: int, n_envs: int) -> int:
     return TRAINING_SEEDS + run_seed * SEEDS_PER_RUN + episode * n_envs + env
 
 
-def residual_smoothness(action: np.ndarray, previous: np.ndarray, weight: float) -> np.ndarray:
+def residual_smoothness(
+    action: np.ndarray, previous: np.ndarray, weight: float
+) -> tuple[np.ndarray, np.ndarray]:
     """The residual's own smoothness penalty, w·(a - a_prev)² on the policy's actions clipped to [-1, 1]
-    (float64, elementwise): it prices the residual's sample-to-sample change, its dither, which the
-    scenario's smoothness term (on the whole command) cannot tell from its base's own switching (a relay).
-    a_prev is 0 at an episode's start, where a residual starts."""
+    (float64, elementwise), and the clipped actions, the next call's `previous`: it prices the residual's
+    sample-to-sample change, its dither, which the scenario's smoothness term (on the whole command)
+    cannot tell from its base's own switching (a relay). `previous` is 0 at an episode's start, where a
+    residual starts."""
     a = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
-    d = a - np.clip(np.asarray(previous, dtype=np.float64), -1.0, 1.0)
-    return weight * (d * d)
+    d = a - previous
+    return weight * (d * d), a
 
 
 def _vec_env_base() -> type:
@@ -148,8 +151,8 @@ class TrainingVecEnv(_vec_env_base()):
             u = residual_action(np.concatenate(self.u_base).reshape(n, 1), a, self.alpha, shares).reshape(n)
         obs, reward, term, trunc, _ = self.core.step(u)
         if self.smoothness:
-            reward = reward - residual_smoothness(a, self.a_prev, self.smoothness).reshape(n)
-            self.a_prev = np.clip(np.asarray(a, dtype=np.float64), -1.0, 1.0)
+            penalty, self.a_prev = residual_smoothness(a, self.a_prev, self.smoothness)
+            reward = reward - penalty.reshape(n)
         obs = self._observe(range(self.num_envs), obs)
         done = term | trunc
         infos: list[dict[str, Any]] = [
