@@ -32,6 +32,7 @@ from .classical import (
     LabPD,
     LuGreObserver,
     PIDCoulombViscousFF,
+    ResidualBaseSettings,
     Southward,
     SpeedScheduled,
     SpeedScheduledBumpless,
@@ -72,6 +73,8 @@ def builtin(name: str) -> Controller:
     return BUILTIN[name]()
 
 
+_sf_base = partial(StateFeedback, "relay", w_cl=ResidualBaseSettings.defaults().w_cl, observe_residual=True)
+
 # Residual bases that are not baselines (no seed describes them): made by name like any controller (a
 # leaderboard runs one when asked for it, as an entry), never in a default run or a baseline.
 BASES: dict[str, Callable[[], Controller]] = {
@@ -85,9 +88,9 @@ BASES: dict[str, Callable[[], Controller]] = {
     "TaskScheduled": partial(TaskScheduled, builtin),
     "SF+relay/residual-observed": partial(StateFeedback, "relay", observe_residual=True),
     "SF+highgain/residual-observed": partial(StateFeedback, "highgain", observe_residual=True),
-    # Wallenborg's loop designed for ω_cl = 9 rad/s instead of controllers.yaml's 12: on the flexible speed
-    # steps it rings less (docs/training.md, flexible attempt 12); the number is part of the name.
-    "SF(w9,y1)+relay/residual-observed": partial(StateFeedback, "relay", w_cl=9.0, observe_residual=True),
+    # Wallenborg's loop at controllers.yaml's state_feedback_residual_base ω_cl (9 rad/s, not the baseline's
+    # 12): on the flexible speed steps it rings less; the number is part of the name.
+    _sf_base().name: _sf_base,
 }
 
 

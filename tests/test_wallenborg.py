@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from frictiongym.agents.classical.state_feedback import (
+    ResidualBaseSettings,
     StateFeedback,
     describing_function_cycle,
     regulator_poles,
@@ -136,7 +137,8 @@ def test_the_loop_below_the_regulator_stability_boundary_rings_less_on_speed_ste
 
     base = "SF(w9,y1)+relay/residual-observed"
     w_cl = registry.make(base).w_cl
-    assert w_cl == 9.0 and np.all(regulator_poles(SPEC, w_cl).real < 0)
+    assert w_cl == ResidualBaseSettings.defaults().w_cl == 9.0  # rad/s, controllers.yaml
+    assert np.all(regulator_poles(SPEC, w_cl).real < 0)
     assert np.isnan(describing_function_cycle(SPEC, w_cl, 5e-4)["omega"])
     for seed in (500000, 500001):
         episode = Episode("flexible_speed_step", seed, True)

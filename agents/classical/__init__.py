@@ -24,7 +24,7 @@ from .scheduled import (
     TrackingLowSettings,
 )
 from .southward_rdfc import RDFC, RDFCSettings, Southward, SouthwardSettings
-from .state_feedback import StateFeedback, StateFeedbackSettings
+from .state_feedback import ResidualBaseSettings, StateFeedback, StateFeedbackSettings
 
 __all__ = [
     "PD",
@@ -39,6 +39,7 @@ __all__ = [
     "PIDCoulombViscousFF",
     "PIDSettings",
     "RDFCSettings",
+    "ResidualBaseSettings",
     "Southward",
     "SouthwardSettings",
     "SpeedScheduled",

@@ -56,6 +56,20 @@ class StateFeedbackSettings(cfg.FamilySettings):
         )
 
 
+@dataclass(frozen=True)
+class ResidualBaseSettings(cfg.FamilySettings):
+    """controllers.yaml `state_feedback_residual_base`: w_cl (rad/s), the closed-loop design of the residual
+    base SF(w<w_cl>,y1)+relay/residual-observed (agents/registry.py BASES), not a baseline."""
+
+    SECTION: ClassVar[str] = "state_feedback_residual_base"
+    w_cl: float
+
+    @classmethod
+    @cache
+    def defaults(cls) -> ResidualBaseSettings:
+        return cfg.read(cls.SECTION, lambda s: cls(s.positive("w_cl", 1e4)))
+
+
 def wallenborg_poles(w: float, zeta: float):
     """(s + w)(s² + 2ζw s + w²), the pole pattern of §4.1 (α_cl = ω_cl)."""
 
