@@ -122,16 +122,23 @@ def test_a_run_that_selects_nothing_is_reported_and_the_other_runs_go_on(tmp_pat
 
 
 @pytest.mark.slow
-def test_resume_continues_the_same_run(tmp_path):
-    """--resume keeps the history, the step count and the training-seed schedule, and trains to the new
-    total; without --resume a finished folder is refused."""
+def test_resume_continues_the_same_run(tmp_path, monkeypatch):
+    """--resume keeps the history, the step count, the training-seed schedule and the provenance of the
+    code the run started with, and trains to the new total; without --resume a finished folder is
+    refused."""
+    from frictiongym.agents.training import run as run_module
+
+    monkeypatch.setattr(run_module, "provenance", lambda: {"package_version": "0", "git_commit": "start"})
     first, folder = train(tmp_path, "SAC", steps=256, parallel=True)
+    assert first["git_commit"] == "start"
+    monkeypatch.setattr(run_module, "provenance", lambda: {"package_version": "0", "git_commit": "later"})
     episodes_before = json.loads((folder / "checkpoint" / "state.json").read_text())["episodes"]
     assert episodes_before == [2]  # 256 steps of 250-step episodes: the second episode is running
     with pytest.raises(FileExistsError, match="finished run"):
         train(tmp_path, "SAC", steps=512)
     second, _ = train(tmp_path, "SAC", steps=512, resume=True, parallel=True)
     assert second["steps"] == 512 and second["wall_time_s"] >= first["wall_time_s"]
+    assert second["git_commit"] == "start"  # the manifest names the commit the run started at
     steps = [int(r.split(",")[0]) for r in (folder / "validation.csv").read_text().splitlines()[1:]]
     assert steps[:2] == [128, 256] and steps[-1] == 512
     state = json.loads((folder / "checkpoint" / "state.json").read_text())

@@ -104,6 +104,9 @@ class TrainingRun:
         self.reporter: Callable[[dict[str, float]], None] | None = None  # e.g. Ray Tune's report
         self.logger: Any = None  # the model's logger (validation metrics to TensorBoard)
         self.last_snapshot: Snapshot | None = None  # the model of the latest validation (the checkpoint's)
+        # the code that trains the model: package version and commit when the run starts (a resumed run
+        # keeps its first start's, train); read before the baselines' evaluation, which takes a while
+        self.prov: dict[str, str] = provenance()
 
     def elapsed(self) -> float:
         return self.wall_before + time.monotonic() - self.t0
@@ -230,6 +233,7 @@ class TrainingRun:
             "next_eval": self.next_eval,
             "episodes": model.get_env().get_attr("episodes"),
             "pending": [p.meta for p in self.pending],  # at most the checkpoint's own model
+            "provenance": self.prov,
         }
         atomic_text(self.out / "checkpoint" / "state.json", json.dumps(state))
 
@@ -281,6 +285,7 @@ class TrainingRun:
                 venv.env_method("set_episodes", n, indices=[i])
             self.history, self.best, self.next_eval = state["history"], state["best"], state["next_eval"]
             self.wall_before, self.eval_s = state["wall_s"], state.get("eval_s", 0.0)
+            self.prov = state.get("provenance") or self.prov  # the code the run first started with
             for meta in state.get("pending", []):  # the checkpoint's model, not evaluated before the stop
                 snap = Snapshot.read(ck)
                 self._record(meta, snap, evaluate_snapshot(cfg, self.name, snap, self.groups))
@@ -324,8 +329,7 @@ class TrainingRun:
     def manifest(self, steps: int) -> Manifest:
         import stable_baselines3
 
-        cfg = self.cfg
-        prov = provenance()
+        cfg, prov = self.cfg, self.prov
         return Manifest(
             name=self.name,
             algorithm=cfg.algorithm,
