@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 
 from .friction import element_levels, elements, joint_friction_torque, joint_levels
-from .metrics import episode_metrics
+from .metrics import episode_metrics, from_first_period
 from .plants.backend import BatchBackend, SingleBackend, period_delay
 from .plants.mjcf import to_mjcf
 from .plants.params import EpisodeParams, ModelIndex
@@ -499,13 +499,13 @@ class ServoCore:
 
     def metrics(self, i: int) -> dict[str, float]:
         """Episode metrics of simulation i (commands from the first period on)."""
-        g = self.episode_log(i)
+        g = from_first_period(self.episode_log(i))
         return episode_metrics(
-            g["t"][1:],
-            g["reference"][1:],
-            g["output"][1:],
-            g["command"][1:],
-            g["velocity"][1:],
+            g["t"],
+            g["reference"],
+            g["output"],
+            g["command"],
+            g["velocity"],
             settle_band=self.sc.settle_band,
             stick_velocity=self.stick_velocity,
             lc_min_amp=self.lc_min_amp,

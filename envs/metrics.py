@@ -124,6 +124,12 @@ def effort(u: np.ndarray) -> dict[str, float]:
     }
 
 
+def from_first_period(log: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The samples of an episode log the metrics use: from the first control period on (the log's first
+    sample is the reset state, before any command was applied)."""
+    return {k: v[1:] for k, v in log.items()}
+
+
 def defined_metrics(metrics: dict[str, float]) -> dict[str, float]:
     """The metrics that are defined for an episode (not nan: e.g. settling_time when the output never
     settles, reversal_peak_error without a reversal), as the envs put them in info: a dict with nan

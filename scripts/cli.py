@@ -21,6 +21,7 @@ COMMANDS = {  # subcommand -> module of frictiongym.scripts
     "leaderboard": "leaderboard",
     "train": "train",
     "sim2real": "sim2real",
+    "windows": "windows",
     "identify": "identify",
     "reproduce": "reproduce",
     "zoo": "zoo",
