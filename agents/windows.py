@@ -42,6 +42,9 @@ def window_metrics(log: dict[str, np.ndarray], window_s: float) -> list[dict[str
         raise ValueError(f"window_s must be > 0 s, got {window_s}")
     g = from_first_period(log)
     t = np.asarray(g["t"], float)
+    period = float(np.max(np.diff(t), initial=0.0))
+    if window_s < period:  # a window could hold no sample
+        raise ValueError(f"window_s ({window_s} s) must be at least the sampling period ({period:g} s)")
     n = max(1, round(t[-1] / window_s))
     # 1e-9: a sample on a window edge opens the next window
     k = np.minimum(np.floor(t / window_s + 1e-9).astype(int), n - 1)

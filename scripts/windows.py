@@ -37,9 +37,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-randomize", action="store_true", help="the nominal plant in every episode")
     ap.add_argument("--out", type=Path, default=Path("out/windows"))
     args = ap.parse_args(argv)
-    if not args.window_s > 0:
-        ap.error(f"--window-s must be > 0 s, got {args.window_s}")
     scenario = load_scenario(args.scenario)
+    if not args.window_s >= scenario.control_period:  # a window could hold no sample
+        period = scenario.control_period
+        ap.error(f"--window-s must be at least the control period, {period:g} s; got {args.window_s}")
     models = [str(m) for m in args.models]
     if args.controllers:
         for name in args.controllers:

@@ -28,6 +28,8 @@ def test_windows_cut_the_metric_samples_and_the_last_sample_joins_the_last_windo
     assert [x["mean_abs_error"] for x in w] == [1.0, 2.0]
     with pytest.raises(ValueError, match="window_s must be > 0"):
         window_metrics(log, 0.0)
+    with pytest.raises(ValueError, match="at least the sampling period"):
+        window_metrics(log, 0.4)  # samples 0.5 s apart: a window could hold none
 
 
 def test_windows_add_up_to_the_episode_metrics():
@@ -58,7 +60,9 @@ def test_controller_windows_average_episodes_of_one_scenario():
         controller_windows(pid, [episodes[0], Episode("flexible_scurve", 800000, True)], 5.0)
 
 
-def test_the_script_writes_the_table_and_refuses_a_controller_that_does_not_apply(tmp_path, capsys):
+def test_the_script_writes_the_table_and_refuses_what_cannot_be_windowed(tmp_path, capsys):
+    """A controller that does not apply to the scenario, or a window shorter than the control period
+    (it could hold no sample), is an error naming it."""
     out = tmp_path / "w"
     args = ["--scenario", "flexible_chirp", "--seeds", "800000", "--window-s", "5", "--out", str(out)]
     assert windows_script.main([*args, "--controllers", "PID", "LuGreObserver"]) == 0
@@ -68,3 +72,6 @@ def test_the_script_writes_the_table_and_refuses_a_controller_that_does_not_appl
     with pytest.raises(SystemExit):
         windows_script.main([*args, "--controllers", "RDFC"])
     assert "RDFC does not apply to flexible_chirp" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        windows_script.main([*args[:-4], "--window-s", "0.01", "--out", str(out)])
+    assert "--window-s must be at least the control period, 0.04 s" in capsys.readouterr().err
