@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from frictiongym.envs.metrics import from_first_period
+from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
 
 from .base import Controller
@@ -26,6 +27,8 @@ FIELDS = [
     "scenario",
     "window_start_s",
     "window_end_s",
+    "frequency_hz_start",
+    "frequency_hz_end",
     "episodes",
     "effort_rms",
     "mean_abs_error",
@@ -65,7 +68,8 @@ def window_metrics(log: dict[str, np.ndarray], window_s: float) -> list[dict[str
 def controller_windows(
     controller: Controller, episodes: Sequence[Episode], window_s: float, envs: EnvCache | None = None
 ) -> list[dict[str, Any]]:
-    """One controller on every episode (one scenario), its window metrics averaged over the episodes."""
+    """One controller on every episode (one scenario), its window metrics averaged over the episodes; with
+    the reference's frequency (Hz) at each window's start and end (a chirp's band; nan without one)."""
     scenarios = {e.scenario for e in episodes}
     if len(scenarios) != 1:
         raise ValueError(f"the episodes must share one scenario, got {sorted(scenarios)}")
@@ -74,12 +78,15 @@ def controller_windows(
         window_metrics(run_episode(controller, e, keep_log=True, envs=envs).log, window_s) for e in episodes
     ]
     n = min(len(w) for w in per_episode)  # the same duration for every episode of a scenario
+    reference = load_scenario(episodes[0].scenario).reference
     return [
         {
             "controller": controller.name,
             "scenario": episodes[0].scenario,
             "window_start_s": per_episode[0][i]["window_start_s"],
             "window_end_s": per_episode[0][i]["window_end_s"],
+            "frequency_hz_start": float(reference.frequency_hz_at(per_episode[0][i]["window_start_s"])),
+            "frequency_hz_end": float(reference.frequency_hz_at(per_episode[0][i]["window_end_s"])),
             "episodes": len(episodes),
             "effort_rms": float(np.mean([w[i]["effort_rms"] for w in per_episode])),
             "mean_abs_error": float(np.mean([w[i]["mean_abs_error"] for w in per_episode])),

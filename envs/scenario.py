@@ -145,6 +145,24 @@ class Reference:
         tau = np.clip(tau, 0.0, T)
         return d * (tau / T - np.sin(2 * np.pi * tau / T) / (2 * np.pi)) if T > 0 else np.zeros_like(tau)
 
+    def _sweep(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """A chirp's phase (rad, without phase_rad) and frequency (Hz) at t: the frequency swept linearly,
+        f(t) = f0 + (f1 - f0)·min(t, T)/T, then held at f1; the phase is 2π∫f."""
+        f0, f1, T = self.frequency_hz, self.end_frequency_hz, self.sweep_s
+        ts = np.minimum(t, T)
+        phase = 2 * np.pi * (f0 * ts + 0.5 * (f1 - f0) / T * ts**2 + f1 * (t - ts))
+        return phase, f0 + (f1 - f0) * ts / T
+
+    def frequency_hz_at(self, t: np.ndarray | float) -> np.ndarray:
+        """The reference's frequency (Hz) at t: a chirp's swept frequency, a sine's or triangle's
+        frequency_hz; nan for a reference without one (constant, moves, ramps, recorded, random)."""
+        t = np.asarray(t, dtype=float)
+        if self.type == "chirp":
+            return self._sweep(t)[1]
+        if self.type in ("sine", "triangle"):
+            return np.full_like(t, self.frequency_hz)
+        return np.full_like(t, np.nan)
+
     def _moves(self, t: np.ndarray) -> np.ndarray:
         out = np.full_like(t, self.offset)
         start = self.offset
@@ -166,11 +184,8 @@ class Reference:
             return values[np.searchsorted(starts, t + 1e-12, side="right")]
         if self.type in ("trapezoid", "scurve"):
             return self._moves(t)
-        if self.type == "chirp":  # phase of a linear sweep, then the end frequency
-            f0, f1, T = self.frequency_hz, self.end_frequency_hz, self.sweep_s
-            ts = np.minimum(t, T)
-            phase = 2 * np.pi * (f0 * ts + 0.5 * (f1 - f0) / T * ts**2 + f1 * (t - ts))
-            return self.offset + self.amplitude * np.sin(phase + self.phase_rad)
+        if self.type == "chirp":
+            return self.offset + self.amplitude * np.sin(self._sweep(t)[0] + self.phase_rad)
         if self.type == "recorded":  # the last sample at or before t (clock jitter up to 1 % of a period)
             ts, x = self.samples()
             slack = 0.01 * float(np.median(np.diff(ts)))

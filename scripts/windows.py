@@ -14,6 +14,7 @@ references, plug-ins and the --models folders'); a residual base that is no base
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 from tqdm import tqdm
@@ -62,6 +63,9 @@ def main(argv: list[str] | None = None) -> int:
     width = max(len(c.name) for c in controllers)
     starts = [r["window_start_s"] for r in rows if r["controller"] == controllers[0].name]
     print(f"{'window start (s)':<{width}}  " + " ".join(f"{s:6.2f}" for s in starts))
+    first = [r for r in rows if r["controller"] == controllers[0].name]
+    if all(math.isfinite(r["frequency_hz_start"]) for r in first):  # a chirp: each window is a band
+        print(f"{'frequency (Hz)':<{width}}  " + " ".join(f"{r['frequency_hz_start']:6.3f}" for r in first))
     for key, label in (("mean_abs_error", "mean |error|"), ("effort_rms", "command rms")):
         print(f"\n{label}")
         for c in controllers:

@@ -98,6 +98,12 @@ def test_chirp_sweeps_its_frequency_and_scurve_moves_within_its_limits():
     # instantaneous frequency f0 + (f1 - f0) t / T: about 0.6 Hz near the start, 2.4 Hz near the end
     assert 1 / periods[0] == pytest.approx(0.5 + 0.2 * t[up][:2].mean(), rel=0.05)
     assert 1 / periods[-1] == pytest.approx(0.5 + 0.2 * t[up][-2:].mean(), rel=0.05)
+    # frequency_hz_at (the windows' bands) is the frequency r(t) has: every measured period's, held after T
+    mid = (t[up][1:] + t[up][:-1]) / 2
+    np.testing.assert_allclose(chirp.frequency_hz_at(mid), 1 / periods, rtol=0.01)
+    assert chirp.frequency_hz_at(25.0) == 2.5
+    assert Reference("sine", frequency_hz=0.3).frequency_hz_at(7.0) == 0.3
+    assert np.isnan(Reference("constant", value=1.0).frequency_hz_at(1.0))
     s = Reference("scurve", schedule=((0.5, 1.0), (3.0, -0.5)), max_velocity=2.0, max_acceleration=8.0)
     x = s(t)
     v = np.gradient(x, t)

@@ -54,6 +54,9 @@ def test_controller_windows_average_episodes_of_one_scenario():
     rows = controller_windows(pid, episodes, 5.0)
     each = [window_metrics(run_episode(pid, e, keep_log=True).log, 5.0) for e in episodes]
     assert [r["episodes"] for r in rows] == [2] * 4
+    # the chirp's band per window: 0.02 Hz at 0 s, + 0.049 Hz/s (configs/scenarios/flexible_chirp.yaml)
+    assert [r["frequency_hz_start"] for r in rows] == pytest.approx([0.02, 0.265, 0.51, 0.755])
+    assert rows[-1]["frequency_hz_end"] == pytest.approx(1.0)
     for i, row in enumerate(rows):
         assert row["effort_rms"] == pytest.approx((each[0][i]["effort_rms"] + each[1][i]["effort_rms"]) / 2)
     with pytest.raises(ValueError, match="one scenario"):
