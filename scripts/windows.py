@@ -60,10 +60,9 @@ def main(argv: list[str] | None = None) -> int:
         rows += controller_windows(c, episodes, args.window_s, envs)
         atomic_text(args.out / "windows.csv", csv_text(rows, FIELDS))
     plot_windows(rows, args.out)
-    width = max(len(c.name) for c in controllers)
-    starts = [r["window_start_s"] for r in rows if r["controller"] == controllers[0].name]
-    print(f"{'window start (s)':<{width}}  " + " ".join(f"{s:6.2f}" for s in starts))
-    first = [r for r in rows if r["controller"] == controllers[0].name]
+    width = max(len("window start (s)"), *(len(c.name) for c in controllers))
+    first = [r for r in rows if r["controller"] == controllers[0].name]  # every controller has these windows
+    print(f"{'window start (s)':<{width}}  " + " ".join(f"{r['window_start_s']:6.2f}" for r in first))
     if all(math.isfinite(r["frequency_hz_start"]) for r in first):  # a chirp: each window is a band
         print(f"{'frequency (Hz)':<{width}}  " + " ".join(f"{r['frequency_hz_start']:6.3f}" for r in first))
     for key, label in (("mean_abs_error", "mean |error|"), ("effort_rms", "command rms")):
