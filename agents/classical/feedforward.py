@@ -47,7 +47,8 @@ class PIDCoulombViscousFF(CoulombViscousFF):
     """The same feed-forward on the PID loop of pid.py: the integrator removes what the identified levels
     miss (a drawn friction scale, asymmetry, drift) and the feed-forward takes the Coulomb step at a
     reversal off the integrator, which otherwise has to wind through it. The integrator's anti-windup
-    sees the feedback part of the command (pid.PID.command)."""
+    sees the feedback part of the command (pid.PID.command); the applied total, measured against it, is in
+    docs/training.md ("PID+FF")."""
 
     name: ClassVar[str] = "PID+FF"
     integral: ClassVar[bool] = True
