@@ -402,6 +402,36 @@ def test_asymmetric_actor_ignores_the_privileged_block(tmp_path):
     assert not np.array_equal(a, model.predict(z, deterministic=True)[0])
 
 
+@pytest.mark.parametrize("algo", ["SAC", "PPO"])
+def test_an_exported_model_acts_as_the_run_s_without_its_optimizers_state(tmp_path, algo):
+    """export_model writes model.zip without the optimizers' running state (the committed models stay
+    small): smaller, every network weight the run's bit for bit, loaded by SB3 with empty optimizers, and
+    the same episode to the last bit through the registry."""
+    from operator import attrgetter
+
+    import torch
+
+    from frictiongym.agents.learned import algorithm_class
+
+    manifest, run = train(tmp_path, algo)
+    folder = export_model(run, tmp_path / "committed")
+    assert (folder / "model.zip").stat().st_size < (run / "model.zip").stat().st_size
+    full, slim = (algorithm_class(algo).load(str(f / "model.zip"), device="cpu") for f in (run, folder))
+    a, b = full.policy.state_dict(), slim.policy.state_dict()
+    assert a.keys() == b.keys() and all(torch.equal(a[k], b[k]) for k in a)
+    optimizers = [n for n in full._get_torch_save_params()[0] if n.endswith("optimizer")]
+    assert optimizers
+    for name in optimizers:
+        kept, emptied = (attrgetter(name)(m).state_dict() for m in (full, slim))
+        assert not emptied["state"], name
+        assert kept["state"] or algo == "PPO", name  # the PPO snapshot kept (step 128) precedes any update
+        assert kept["param_groups"] == emptied["param_groups"], name
+    episode = validation_episodes(SCENARIO)[0]
+    make = registry.make
+    full_row, slim_row = (run_episode(make(manifest["name"], (str(f),)), episode) for f in (run, folder))
+    np.testing.assert_equal(slim_row.metrics, full_row.metrics)  # NaN metrics (e.g. no settling) equal too
+
+
 def test_registry_skips_scenarios_with_another_observation(tmp_path):
     """A model trained on the flexible servo is planned on its scenarios and skipped on others, with the
     reason named (the plant, checked before the observation shape)."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import io
 import json
 import math
 import multiprocessing as mp
@@ -12,6 +13,7 @@ import os
 import shutil
 import sys
 import time
+import zipfile
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -411,13 +413,39 @@ def run_dir(out: Path, cfg: RunConfig, seed: int) -> Path:
 EXPORTED = (MODEL, NORMALIZER, MANIFEST, VALIDATION_CSV, "training_curve.png")
 
 
+def without_optimizer_state(model_zip: bytes) -> bytes:
+    """A saved SB3 model (model.zip's bytes) with its optimizers' running state emptied (Adam's moments:
+    about half of an SAC model's file), every other entry, the networks' weights included, byte for byte.
+    What acting needs, not what resuming training needs (a run's checkpoint keeps the full model); the
+    entries stay, so SB3's load (which asks for every optimizer by name) reads it unchanged."""
+    import torch
+
+    out = io.BytesIO()
+    with zipfile.ZipFile(io.BytesIO(model_zip)) as src, zipfile.ZipFile(out, "w") as dst:
+        for info in src.infolist():
+            data = src.read(info)
+            if info.filename.endswith(".pth"):
+                obj = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
+                if isinstance(obj, dict) and set(obj) == {"state", "param_groups"}:  # an optimizer's
+                    buf = io.BytesIO()
+                    torch.save({"state": {}, "param_groups": obj["param_groups"]}, buf)
+                    data = buf.getvalue()
+            dst.writestr(info, data)
+    return out.getvalue()
+
+
 def export_model(run: Path, dest: Path) -> Path:
     """Copy a finished run's model folder (model, statistics, manifest, validation record, curve; not the
-    checkpoint or logs) to dest/<name>/, e.g. into agents/models/headline/ to commit it."""
+    checkpoint or logs) to dest/<name>/, e.g. into agents/models/headline/ to commit it; the model without
+    its optimizers' state (without_optimizer_state: the committed models stay small)."""
     folder = Path(dest) / Manifest.read(Path(run)).name
     folder.mkdir(parents=True, exist_ok=True)
+    model = Path(run) / MODEL
+    if model.exists():
+        slim = without_optimizer_state(model.read_bytes())
+        atomic_write(folder / MODEL, lambda p: p.write_bytes(slim))
     for f in EXPORTED:
-        if (Path(run) / f).exists():
+        if f != MODEL and (Path(run) / f).exists():
             shutil.copy2(Path(run) / f, folder / f)
     return folder
 
