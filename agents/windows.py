@@ -19,7 +19,7 @@ from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
 
 from .base import Controller
-from .evaluate import EnvCache, run_episode
+from .evaluate import EnvCache, run_episodes
 from .figures import save_figure
 
 FIELDS = [
@@ -74,9 +74,9 @@ def controller_windows(
     if len(scenarios) != 1:
         raise ValueError(f"the episodes must share one scenario, got {sorted(scenarios)}")
     envs = envs or EnvCache()
-    per_episode = [
-        window_metrics(run_episode(controller, e, keep_log=True, envs=envs).log, window_s) for e in episodes
-    ]
+    # the one evaluation loop, episodes of one env stepped together (each result the episode's alone)
+    runs = run_episodes(controller, list(episodes), keep_log=True, envs=envs)
+    per_episode = [window_metrics(r.log, window_s) for r in runs]
     n = min(len(w) for w in per_episode)  # the same duration for every episode of a scenario
     reference = load_scenario(episodes[0].scenario).reference
     return [
