@@ -96,7 +96,8 @@ class Controller(ABC):
     def lockstep(self, n: int) -> Lockstep:
         """The controller for n episodes of one scenario run together (evaluate.run_episodes): this one
         for the first and a deep copy for each other, each acting on its own episode's observation. A
-        controller that can act on every episode in one call overrides it (SB3Policy: one network call)."""
+        controller that can act on every episode in one call overrides it (LearnedPolicy: one network
+        call)."""
         return Lockstep([self, *(copy.deepcopy(self) for _ in range(n - 1))])
 
 

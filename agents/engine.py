@@ -16,6 +16,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 import multiprocessing
 import os
 import signal
@@ -370,18 +371,63 @@ class EpisodesFile:
             if self.path.exists():
                 raise RunMismatch(f"{self.path} exists without {run}; use another --out or remove it")
             atomic_text(run, text + "\n")
-        self.results = self._read()
-        atomic_text(self.path, _csv_text(self.results, header=True))  # without a torn tail
+        self.rows, self.refused = self._read()
+        self.results = [r for _, r in self.rows]
 
-    def _read(self) -> list[EpisodeResult]:
-        """Complete rows already on disk (a last line without its newline is a torn write: dropped)."""
+    def _read(self) -> tuple[list[tuple[int, EpisodeResult]], list[tuple[int, str]]]:
+        """The rows on disk as (line, result), and the (line, why) of those that are not a result (a
+        short or long row, a value that does not parse); a last line without its newline is a torn
+        write and not read."""
         if not self.path.exists():
-            return []
-        text = self.path.read_text()
+            return [], []
+        text = self.path.read_bytes().decode("utf-8", errors="replace")
         if not text.endswith("\n"):
             text = text[: text.rfind("\n") + 1]
-        rows = csv.DictReader(io.StringIO(text))
-        return [parse_row(r) for r in rows if None not in r and len(r) == len(FIELDS)]
+        reader = csv.DictReader(io.StringIO(text))
+        rows, refused = [], []
+        for r in reader:
+            if None in r or len(r) != len(FIELDS) or None in r.values():
+                refused.append((reader.line_num, f"{len(r)} fields where the header has {len(FIELDS)}"))
+                continue
+            try:
+                rows.append((reader.line_num, parse_row(r)))
+            except (ValueError, KeyError) as e:
+                refused.append((reader.line_num, str(e).split("\n")[0]))
+        return rows, refused
+
+    def reconcile(self, jobs: list[Job], prov: dict[str, str]) -> None:
+        """Keep the rows this run can reuse: a job of this run (run.json's episodes and controllers),
+        once, written by this code version (package version and commit: one run's rows come from one
+        code), with a finite return and main metric unless it diverged. Every other row is named on
+        stderr (file, lines, why), dropped from the file and re-run; never counted."""
+        planned = {j.key(): j for j in jobs}
+        main = {j.scenario: load_scenario(j.scenario).main_metric for j in jobs}
+        kept, seen, dropped = [], set(), list(self.refused)
+        for line, r in self.rows:
+            why = None
+            if r.key() not in planned:
+                why = "not an episode of this run's controllers and episodes (run.json)"
+            elif r.key() in seen:
+                why = "a second row for an episode already read"
+            elif r.provenance != prov:
+                why = f"written by another code version ({r.provenance}; this is {prov})"
+            elif not r.diverged and not all(
+                map(math.isfinite, (r.episode_return, r.metrics[main[r.scenario]]))
+            ):
+                why = f"a non-finite return or {main[r.scenario]} in an episode that did not diverge"
+            if why is None:
+                kept.append(r)
+                seen.add(r.key())
+            else:
+                dropped.append((line, why))
+        by_why: dict[str, list[int]] = {}
+        for line, why in sorted(dropped):
+            by_why.setdefault(why, []).append(line)
+        for why, lines in by_why.items():
+            shown = ", ".join(map(str, lines[:5])) + (f" and {len(lines) - 5} more" if len(lines) > 5 else "")
+            print(f"{self.path}: line {shown}: {why}; re-run", file=sys.stderr)
+        self.results = kept
+        atomic_text(self.path, _csv_text(self.results, header=True))  # without a torn tail or dropped rows
 
     def done(self) -> set[tuple[str, str, int, bool, str]]:
         return {r.key() for r in self.results}
@@ -419,6 +465,7 @@ def evaluate_to(
     (`workers`, `ray`) is not part of the run's options: a run can be resumed on another backend."""
     store = EpisodesFile(out, options)
     jobs, skipped = plan(controllers, episodes, models)
+    store.reconcile(jobs, provenance())
     done = store.done()
     run_jobs([j for j in jobs if j.key() not in done], workers, store.append, progress, models, ray)
     return store.finish(jobs, scoring(episodes)), skipped

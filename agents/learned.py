@@ -5,10 +5,11 @@ classical base controller and with frozen observation-normalisation statistics.
 The model's input is the env's observation (with the history / privileged blocks the model was trained
 with, which the controller asks the env for) followed, in residual mode, by the base controller's action.
 `policy_observation` and `residual_action` are the one implementation of that input and of the combined
-action, used by the training wrapper (agents/training/) and by SB3Policy alike. `SB3Policy.actions` acts
-on many episodes' observations in one call (the leaderboard's and validation's batched episodes,
+action, used by the training wrapper (agents/training/) and by LearnedPolicy alike. `LearnedPolicy.actions`
+acts on many episodes' observations in one call (the leaderboard's and validation's batched episodes,
 evaluate.run_episodes): its network is a `RowwiseActor`, whose rows never interact, so each episode gets
-the action it would get alone.
+the action it would get alone. A saved model is that network's layers (agents/model_folder.py), so
+evaluating one needs numpy only.
 """
 
 from __future__ import annotations
@@ -17,7 +18,6 @@ import copy
 import dataclasses
 import hashlib
 import importlib
-import pickle
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, ClassVar
@@ -149,39 +149,52 @@ def sha256(path: str | Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _actor_leaves(policy: Any) -> tuple[Any, list[Any], bool] | None:
-    """A deterministic actor as its layers: (actor, its leaf modules in call order, whether a final tanh
-    follows them) for a SAC, TQC or CrossQ actor (squashed Gaussian, no gSDE: the mode is
-    tanh(mu(latent_pi(features)))) or a TD3 actor (mu(features)); None for any other policy (PPO, gSDE,
-    another distribution)."""
-    from stable_baselines3.common.distributions import SquashedDiagGaussianDistribution  # the rl extra
+def _actor_leaves(policy: Any) -> tuple[Any, Any, list[Any], bool] | None:
+    """A deterministic actor as its layers: (the module whose extract_features the actor calls, its
+    features extractor, its leaf modules in call order, whether a final tanh follows them) for a SAC,
+    TQC or CrossQ actor (squashed Gaussian, no gSDE: the mode is tanh(mu(latent_pi(features)))), a TD3
+    actor (mu(features)) or a PPO / A2C policy (diagonal Gaussian, no gSDE: the mode is
+    action_net(policy_net(features))); None for any other policy (recurrent, gSDE, another
+    distribution)."""
+    from stable_baselines3.common.distributions import (  # the rl extra
+        DiagGaussianDistribution,
+        SquashedDiagGaussianDistribution,
+    )
 
+    if hasattr(policy, "mlp_extractor") and hasattr(policy, "action_net"):  # an actor-critic policy
+        if type(policy.action_dist) is not DiagGaussianDistribution or getattr(policy, "use_sde", False):
+            return None
+        if hasattr(policy, "lstm_actor"):
+            return None
+        leaves = [*_leaves(policy.mlp_extractor.policy_net), policy.action_net]
+        return policy, policy.pi_features_extractor, leaves, False
     actor = getattr(policy, "actor", None)
     if actor is None or not hasattr(actor, "mu") or getattr(actor, "use_sde", False):
         return None
     if not hasattr(actor, "latent_pi"):
-        return actor, _leaves(actor.mu), False
+        return actor, actor.features_extractor, _leaves(actor.mu), False
     if not isinstance(actor.action_dist, SquashedDiagGaussianDistribution):
         return None
-    return actor, [*_leaves(actor.latent_pi), *_leaves(actor.mu)], True
+    return actor, actor.features_extractor, [*_leaves(actor.latent_pi), *_leaves(actor.mu)], True
 
 
 def deterministic_actor(policy: Any) -> Callable[[Any], Any]:
     """A function of the observation tensor giving policy._predict(obs, deterministic=True), operation for
     operation: for a SAC, TQC or CrossQ actor (squashed Gaussian, no gSDE) tanh(mu(latent_pi(features)))
-    (the distribution's mode), for a TD3 actor mu(features), each as the plain chain of its layers; any
-    other policy (PPO, gSDE) keeps SB3's own _predict."""
+    (the distribution's mode), for a TD3 actor mu(features), for a PPO / A2C policy action_net(policy_net(
+    features)), each as the plain chain of its layers; any other policy (recurrent, gSDE) keeps SB3's own
+    _predict."""
     import torch  # the rl extra, as in _predict
 
     found = _actor_leaves(policy)
     if found is None:
         return lambda obs: policy._predict(obs, deterministic=True)
-    actor, leaves, squashed = found
+    owner, extractor, leaves, squashed = found
     # each leaf's forward is the computation its call makes (no hooks are set), without torch's dispatch
     chain = [leaf.forward for leaf in leaves] + ([torch.tanh] if squashed else [])
 
     def act(obs: Any) -> Any:
-        h = actor.extract_features(obs, actor.features_extractor)
+        h = owner.extract_features(obs, extractor)
         for f in chain:
             h = f(h)
         return h
@@ -211,9 +224,10 @@ class RowwiseActor:
     tree_sum, plus the bias; then ReLU or tanh; the action is rounded to float32 once, at the end. It is
     the network function to float64 rounding, where torch's float32 forward differs from it by float32
     rounding (up to 1.2e-6 per action measured on the committed models; tests bound it at 1e-5). Built for a
-    SAC / TQC / CrossQ actor (the squashed Gaussian's mode tanh(mu(latent_pi(features)))) or a TD3 actor
-    (mu(features)) of Linear, ReLU and Tanh layers on a flatten or a column-selecting (asymmetric) features
-    extractor; `of` gives None for any other network."""
+    SAC / TQC / CrossQ actor (the squashed Gaussian's mode tanh(mu(latent_pi(features)))), a TD3 actor
+    (mu(features)) or a PPO / A2C policy's Gaussian mean (action_net(policy_net(features))), of Linear,
+    ReLU and Tanh layers on a flatten or a column-selecting (asymmetric) features extractor; `of` gives
+    None for any other network."""
 
     columns: tuple[int, ...] | None  # the features extractor's selection of observation columns (None: all)
     # ("linear", Wᵀ (in, out), b (out,)) or ("relu" | "tanh", None, None), in call order
@@ -225,10 +239,10 @@ class RowwiseActor:
         found = _actor_leaves(policy)
         if found is None:
             return None
-        actor, leaves, squashed = found
-        extractor = type(actor.features_extractor).__name__
+        _, features, leaves, squashed = found
+        extractor = type(features).__name__
         if extractor == "SelectFeatures":  # agents/asymmetric.py: the actor's columns of the observation
-            columns = tuple(int(i) for i in actor.features_extractor.indices.tolist())
+            columns = tuple(int(i) for i in features.indices.tolist())
         elif extractor == "FlattenExtractor" and len(policy.observation_space.shape) == 1:
             columns = None
         else:
@@ -273,7 +287,7 @@ def _leaves(module: Any) -> list[Any]:
 
 class LearnedNeeds:
     """What a learned controller brings into its env: its base's hardware and its observation blocks. Shared
-    by SB3Policy and the training env (agents/training/), so both build the same env."""
+    by LearnedPolicy and the training env (agents/training/), so both build the same env."""
 
     inputs: PolicyInputs
     base: Controller | None
@@ -327,113 +341,101 @@ def policy_why_not(
     return None
 
 
-class SB3Policy(LearnedNeeds, Controller):
-    """A trained SB3 model (any algorithm with predict), deterministic.
+@dataclasses.dataclass(frozen=True)
+class Normalizer:
+    """Frozen observation statistics (stable-baselines3's VecNormalize at evaluation): x ↦
+    clip((x - mean) / sqrt(var + ε), -clip, clip) in float64, then float32, VecNormalize.normalize_obs's
+    arithmetic operation for operation (so the same bits)."""
 
-    With `base` it is a residual: u = clip(u_base + α·π(obs, u_base), -1, 1), and it brings the base's
-    hardware (plant_overrides). `normalizer` is a frozen VecNormalize (its observation statistics are
-    applied, never updated). A recurrent policy (RecurrentPPO) keeps its state over the episode. The
-    network's weights are read at the first action (RowwiseActor): wrap a model that is no longer being
-    trained (a loaded or saved one, as the registry and validation do), or build a new SB3Policy after
-    training it further.
-    """
+    mean: np.ndarray  # float64, one per model input
+    var: np.ndarray  # float64
+    epsilon: float
+    clip: float
 
-    name: ClassVar[str] = "SB3"
-
-    def __init__(
-        self,
-        model: Any,
-        plants: tuple[str, ...] = (),
-        name: str = "SB3",
-        *,
-        inputs: PolicyInputs = PolicyInputs(),
-        base: Controller | None = None,
-        alpha: float = 1.0,
-        normalizer: Any = None,
-    ):
-        self.model, self.plants, self.name = model, tuple(plants), name  # instance values shadow the class
-        self.inputs, self.base, self.alpha, self.normalizer = inputs, base, float(alpha), normalizer
-        if inputs.base_action != (base is not None):
-            raise ValueError(
-                "a residual policy (base controller given) observes the base action, and only it"
-            )
-        if normalizer is not None:
-            normalizer.training = False  # frozen statistics at evaluation
-        self.recurrent = hasattr(model.policy, "lstm_actor")
-        self.jax = is_jax(model)
-        self.hashes: dict[str, str] = {}
-        self._actor: Callable[[Any], Any] | None = None  # deterministic_actor(policy), built on first use
-        self._rowwise: RowwiseActor | bool | None = None  # RowwiseActor.of(policy) on first use; False: none
-        self._fill, self._reference_end = 0, 0  # preview samples to fill in (set per episode by reset)
-        self._differences: tuple[int, int, int] | None = None  # difference_indices, set per episode
-        self._device: Any = None  # the policy's torch device, read with _actor
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return np.clip((x - self.mean) / np.sqrt(self.var + self.epsilon), -self.clip, self.clip).astype(
+            np.float32
+        )
 
     @classmethod
-    def load(
-        cls,
-        path: str | Path,
-        algo: str,
-        plants: tuple[str, ...] = (),
-        name: str | None = None,
-        normalizer: str | Path | None = None,
-        **kw: Any,
-    ) -> SB3Policy:
-        """Load a saved model, e.g. SB3Policy.load("sac_kang.zip", "SAC", ("kang_robot",)); algo is a
-        stable-baselines3 or sb3-contrib class name, normalizer a saved VecNormalize (pickle). The files'
-        SHA-256 are kept as provenance."""
-        model = algorithm_class(algo).load(str(path), device="cpu")
-        norm = None
-        if normalizer is not None:
-            with open(normalizer, "rb") as f:
-                norm = pickle.load(f)
-        policy = cls(model, plants, name or Path(path).stem, normalizer=norm, **kw)
-        policy.hashes = {"model_sha256": sha256(path)}
-        if normalizer is not None:
-            policy.hashes["normalizer_sha256"] = sha256(normalizer)
-        return policy
+    def of(cls, venv: Any) -> Normalizer | None:
+        """The observation statistics of a VecNormalize (None if it does not normalise observations)."""
+        if venv is None or not venv.norm_obs:
+            return None
+        rms = venv.obs_rms
+        return cls(np.array(rms.mean, np.float64), np.array(rms.var, np.float64), venv.epsilon, venv.clip_obs)
 
-    def why_not(self, scenario: Scenario) -> str | None:
-        observes = tuple(self.model.observation_space.shape)
-        return policy_why_not(observes, self.inputs, self.plants, self.base, scenario)
 
-    def reset(self, ctx: EpisodeContext) -> None:
-        if self.base is not None:
-            self.base.reset(ctx)
-        self.start_episode(ctx)
+@dataclasses.dataclass(frozen=True)
+class ActionScale:
+    """From the network's output to the action (SB3's predict): a squashed policy's tanh output in
+    [-1, 1] mapped onto [low, high] (BasePolicy.unscale_action's arithmetic), any other clipped to it."""
 
-    def start_episode(self, ctx: EpisodeContext) -> None:
-        """The policy's own episode start (its base is reset by whoever acts it: reset, PolicyLockstep)."""
-        self.ctx = ctx
+    low: np.ndarray  # float32, the action space's bounds
+    high: np.ndarray
+    squash: bool
+
+    def __call__(self, a: np.ndarray) -> np.ndarray:
+        if self.squash:
+            return self.low + (0.5 * (a + 1.0) * (self.high - self.low))
+        return np.clip(a, self.low, self.high)
+
+    @classmethod
+    def of(cls, policy: Any) -> ActionScale:
+        space = policy.action_space
+        return cls(np.array(space.low), np.array(space.high), bool(policy.squash_output))
+
+
+@dataclasses.dataclass(frozen=True)
+class LayerNetwork:
+    """A deterministic actor as plain layers (RowwiseActor) and its action scaling: what the safe model
+    format (agents/model_folder.py) stores and what every feed-forward SAC / TD3 / TQC actor is evaluated
+    as, numpy only. `observes` is the model input's shape, `algorithm` the algorithm that trained it."""
+
+    actor: RowwiseActor
+    scale: ActionScale
+    observes: tuple[int, ...]
+    algorithm: str
+    recurrent: ClassVar[bool] = False
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        """The actions (n, k) for model inputs (n, d)."""
+        return self.scale(self.actor(x))
+
+    def reset(self) -> None:
+        """A new episode: no state to clear."""
+
+    @classmethod
+    def of(cls, model: Any) -> LayerNetwork | None:
+        """The network of an SB3 model as layers, or None where RowwiseActor does not know its actor."""
+        actor = RowwiseActor.of(model.policy)
+        if actor is None:
+            return None
+        shape = tuple(model.observation_space.shape)
+        return cls(actor, ActionScale.of(model.policy), shape, type(model).__name__)
+
+
+class SB3Network:
+    """An SB3 model that is not a LayerNetwork (a recurrent PPO, gSDE, CrossQ's batch
+    renormalisation, sbx's JAX models): acted through SB3, one row at a time, deterministic. Only models
+    of this process (training, validation) or loaded with an explicit trust in pickles
+    (model_folder.load_sb3_zip) reach it."""
+
+    def __init__(self, model: Any):
+        self.model = model
+        self.observes = tuple(model.observation_space.shape)
+        self.algorithm = type(model).__name__
+        self.recurrent = hasattr(model.policy, "lstm_actor")
+        self.jax = is_jax(model)
+        self._actor: Callable[[Any], Any] | None = None  # deterministic_actor(policy), built on first use
+        self._device: Any = None  # the policy's torch device, read with _actor
+        self.reset()
+
+    def reset(self) -> None:
+        """A new episode: a recurrent policy's state starts afresh."""
         self.state, self.start = None, np.ones(1, dtype=bool)
-        observes = self.model.observation_space.shape[0]
-        self._fill = preview_fill(observes, self.inputs, self.plants, ctx.scenario)
-        self._reference_end = ctx.scenario.layout.slice("reference").stop
-        if self.inputs.differences:
-            self._differences = difference_indices(ctx.scenario, self._fill)
 
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        if self.base is None:
-            return self.actions(obs[None], None)[0]
-        ub = np.asarray(self.base.act(obs)).reshape(1, 1)
-        return self.actions(obs[None], ub, self.base.residual_share())[0]
-
-    def actions(
-        self, obs: np.ndarray, base: np.ndarray | None, share: float | np.ndarray = 1.0
-    ) -> np.ndarray:
-        """The actions (n, 1) for observation rows (n, d) and, in residual mode, the base actions (n, 1)
-        and the residual's shares the bases grant (a number or (n, 1); residual_action): the model input,
-        the frozen normaliser, the network and the residual, each row's action the same whatever the
-        other rows hold (one network call for a RowwiseActor, one per row otherwise)."""
-        x = policy_observation(with_preview(obs, self._reference_end, self._fill), base, self._differences)
-        if self.normalizer is not None:
-            x = self.normalizer.normalize_obs(x).astype(np.float32)
-        a = self._network(x)
-        if base is None:
-            return np.clip(np.asarray(a, dtype=np.float32), -1.0, 1.0)
-        return residual_action(base, a, self.alpha, share)
-
-    def _network(self, x: np.ndarray) -> np.ndarray:
-        """The deterministic model's actions (n, k) for model inputs (n, d)."""
+    def __call__(self, x: np.ndarray) -> np.ndarray:
         if self.recurrent:  # one episode's state: lockstep() gives each episode its own replica
             rows = []
             for row in x:
@@ -445,28 +447,7 @@ class SB3Policy(LearnedNeeds, Controller):
             return np.asarray(rows)
         if self.jax:
             return np.asarray([self.model.predict(row, deterministic=True)[0] for row in x])
-        if self._rowwise is None:
-            self._rowwise = RowwiseActor.of(self.model.policy) or False
-        if self._rowwise is False:
-            return np.asarray([self._predict(row) for row in x])
-        a = self._rowwise(x)
-        policy = self.model.policy
-        if policy.squash_output:
-            return policy.unscale_action(a)
-        return np.clip(a, policy.action_space.low, policy.action_space.high)
-
-    def lockstep(self, n: int) -> Lockstep:
-        """n episodes with one network call per step for all of them: one copy of the base per episode
-        (PolicyLockstep); a recurrent policy keeps one state per episode, so each gets a replica."""
-        if self.recurrent:
-            return Lockstep([self, *(self.replica() for _ in range(n - 1))])
-        return PolicyLockstep(self, n)
-
-    def replica(self) -> SB3Policy:
-        """Another controller on the same model and normaliser, with its own base and episode state."""
-        twin = copy.copy(self)
-        twin.base = copy.deepcopy(self.base)
-        return twin
+        return np.asarray([self._predict(row) for row in x])
 
     def _predict(self, x: np.ndarray) -> np.ndarray:
         """model.predict(x, deterministic=True) of a feed-forward policy, the same torch operations on the
@@ -486,22 +467,131 @@ class SB3Policy(LearnedNeeds, Controller):
         obs = torch.as_tensor(np.asarray(x).reshape(shape), device=self._device)
         with torch.no_grad():
             a = self._actor(obs).cpu().numpy().reshape(policy.action_space.shape)
-        if policy.squash_output:
-            return policy.unscale_action(a)
-        return np.clip(a, policy.action_space.low, policy.action_space.high)
+        return ActionScale.of(policy)(a)
+
+
+Network = LayerNetwork | SB3Network
+
+
+def network_of(model: Any) -> Network:
+    """A model as the network a LearnedPolicy acts with: a LayerNetwork as it is; an SB3 model as its
+    layers where RowwiseActor knows them (each row bit for bit as alone), otherwise SB3Network."""
+    if isinstance(model, LayerNetwork | SB3Network):
+        return model
+    layers = None if is_jax(model) or hasattr(model.policy, "lstm_actor") else LayerNetwork.of(model)
+    return layers if layers is not None else SB3Network(model)
+
+
+class LearnedPolicy(LearnedNeeds, Controller):
+    """A trained policy, deterministic: a network (LayerNetwork, from the safe model format or an SB3
+    model's layers; or SB3Network) on the model input, after frozen observation statistics.
+
+    With `base` it is a residual: u = clip(u_base + α·π(obs, u_base), -1, 1), and it brings the base's
+    hardware (plant_overrides). `normalizer` is a Normalizer (or a VecNormalize, whose statistics are
+    copied). A recurrent policy keeps its state over the episode. An SB3 model's weights are read when
+    the policy is built: wrap a model that is no longer being trained (a loaded or saved one, as the
+    registry and validation do), or build a new LearnedPolicy after training it further.
+    """
+
+    name: ClassVar[str] = "Learned"
+
+    def __init__(
+        self,
+        model: Any,
+        plants: tuple[str, ...] = (),
+        name: str = "Learned",
+        *,
+        inputs: PolicyInputs = PolicyInputs(),
+        base: Controller | None = None,
+        alpha: float = 1.0,
+        normalizer: Any = None,
+    ):
+        self.network = network_of(model)
+        self.plants, self.name = tuple(plants), name  # instance values shadow the class
+        self.inputs, self.base, self.alpha = inputs, base, float(alpha)
+        self.normalizer = (
+            normalizer
+            if normalizer is None or isinstance(normalizer, Normalizer)
+            else (Normalizer.of(normalizer))
+        )
+        if inputs.base_action != (base is not None):
+            raise ValueError(
+                "a residual policy (base controller given) observes the base action, and only it"
+            )
+        self.hashes: dict[str, str] = {}
+        self._fill, self._reference_end = 0, 0  # preview samples to fill in (set per episode by reset)
+        self._differences: tuple[int, int, int] | None = None  # difference_indices, set per episode
+
+    @property
+    def recurrent(self) -> bool:
+        return self.network.recurrent
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        return policy_why_not(self.network.observes, self.inputs, self.plants, self.base, scenario)
+
+    def reset(self, ctx: EpisodeContext) -> None:
+        if self.base is not None:
+            self.base.reset(ctx)
+        self.start_episode(ctx)
+
+    def start_episode(self, ctx: EpisodeContext) -> None:
+        """The policy's own episode start (its base is reset by whoever acts it: reset, PolicyLockstep)."""
+        self.ctx = ctx
+        self.network.reset()
+        self._fill = preview_fill(self.network.observes[0], self.inputs, self.plants, ctx.scenario)
+        self._reference_end = ctx.scenario.layout.slice("reference").stop
+        if self.inputs.differences:
+            self._differences = difference_indices(ctx.scenario, self._fill)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        if self.base is None:
+            return self.actions(obs[None], None)[0]
+        ub = np.asarray(self.base.act(obs)).reshape(1, 1)
+        return self.actions(obs[None], ub, self.base.residual_share())[0]
+
+    def actions(
+        self, obs: np.ndarray, base: np.ndarray | None, share: float | np.ndarray = 1.0
+    ) -> np.ndarray:
+        """The actions (n, 1) for observation rows (n, d) and, in residual mode, the base actions (n, 1)
+        and the residual's shares the bases grant (a number or (n, 1); residual_action): the model input,
+        the frozen normaliser, the network and the residual, each row's action the same whatever the
+        other rows hold (one network call for a LayerNetwork, one per row otherwise)."""
+        x = policy_observation(with_preview(obs, self._reference_end, self._fill), base, self._differences)
+        if self.normalizer is not None:
+            x = self.normalizer(x)
+        a = self.network(x)
+        if base is None:
+            return np.clip(np.asarray(a, dtype=np.float32), -1.0, 1.0)
+        return residual_action(base, a, self.alpha, share)
+
+    def lockstep(self, n: int) -> Lockstep:
+        """n episodes with one network call per step for all of them: one copy of the base per episode
+        (PolicyLockstep); a recurrent policy keeps one state per episode, so each gets a replica."""
+        if self.recurrent:
+            return Lockstep([self, *(self.replica() for _ in range(n - 1))])
+        return PolicyLockstep(self, n)
+
+    def replica(self) -> LearnedPolicy:
+        """Another controller on the same model and normaliser, with its own base and episode state."""
+        twin = copy.copy(self)
+        twin.base = copy.deepcopy(self.base)
+        if isinstance(self.network, SB3Network):
+            twin.network = copy.copy(self.network)
+            twin.network.reset()
+        return twin
 
     def params(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"algorithm": type(self.model).__name__, **self.hashes}
+        out: dict[str, Any] = {"algorithm": self.network.algorithm, **self.hashes}
         if self.base is not None:
             out |= {"base": self.base.name, "alpha": self.alpha}
         return out
 
 
 class PolicyLockstep(Lockstep):
-    """An SB3Policy on n episodes: each episode's base controller acts on its own row, then one call of
-    SB3Policy.actions for every row (row for row the actions each episode gets alone)."""
+    """A LearnedPolicy on n episodes: each episode's base controller acts on its own row, then one call of
+    LearnedPolicy.actions for every row (row for row the actions each episode gets alone)."""
 
-    def __init__(self, policy: SB3Policy, n: int):
+    def __init__(self, policy: LearnedPolicy, n: int):
         super().__init__([policy])
         self.policy = policy
         self.bases = policy.base.lockstep(n) if policy.base is not None else None

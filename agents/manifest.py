@@ -1,7 +1,8 @@
-"""A saved model's manifest (manifest.yaml beside model.zip): what the model is (algorithm, what it observes,
-its base controller and α, the plants it applies to) and how it came to be (scenario, seed, steps, wall
-time, the exact command, package version, the validation it was selected on). Training writes it, the
-registry reads it; whether a model applies to a scenario is decided from it, without loading the zip.
+"""A saved model's manifest (manifest.yaml beside policy.safetensors): what the model is (algorithm, its
+network, what it observes, its base controller and α, the plants it applies to, the SHA-256 of every
+file it names) and how it came to be (scenario, seed, steps, wall time, the exact command relative to
+the repository, package version, the validation it was selected on). Training writes it, the registry
+reads it; whether a model applies to a scenario is decided from it, without loading the weights.
 """
 
 from __future__ import annotations
@@ -17,19 +18,23 @@ from frictiongym.envs.config import ConfigError, Node, load_yaml
 from frictiongym.envs.records import atomic_text
 
 from .learned import PolicyInputs
+from .model_folder import MANIFEST, POLICY, UntrustedModel, file_in_folder
 
-MODEL, NORMALIZER, MANIFEST = "model.zip", "vecnormalize.pkl", "manifest.yaml"  # a model folder's files
+# a run's SB3 model and VecNormalize (pickles: its checkpoint, and a zip converted by convert-model)
+MODEL, NORMALIZER = "model.zip", "vecnormalize.pkl"
 
 
 @dataclass(frozen=True)
 class Manifest:
-    """The fields of manifest.yaml, in its order. A hand-made folder needs name and algorithm only (then
-    the model is model.zip, no normalizer, no base, α = 1, any plant); a trained one has every field."""
+    """The fields of manifest.yaml, in its order. A loadable folder needs name, algorithm, model, network
+    and sha256 (then no base, α = 1, any plant: `frictiongym convert-model` writes them for an SB3 zip);
+    a trained one has every field."""
 
     name: str
     algorithm: str
-    model: str = MODEL
-    normalizer: str | None = None
+    model: str = POLICY
+    network: dict[str, Any] = field(default_factory=dict)  # model_folder.network_section
+    sha256: dict[str, str] = field(default_factory=dict)  # file name -> SHA-256 of every file named
     scenario: str | None = None
     plants: tuple[str, ...] = ()  # the plants the model applies to (empty: any)
     base_controller: str | None = None
@@ -69,16 +74,37 @@ class Manifest:
     @classmethod
     def read(cls, folder: Path) -> Manifest:
         """manifest.yaml of a model folder, every key checked (errors name the file and the key), its model
-        and normalizer files present."""
+        file a regular file inside the folder with a recorded SHA-256 (checked when it is loaded:
+        model_folder.read_policy). A pickle-bearing SB3 zip is refused, naming the conversion command."""
         path = Path(folder) / MANIFEST
         m = Node(load_yaml(path), str(path))
         kw: dict[str, Any] = {"name": m.string("name"), "algorithm": m.string("algorithm")}
-        kw["model"] = m.string("model", default=MODEL)
-        if m.get("normalizer") is not None:
-            kw["normalizer"] = m.string("normalizer")
-        for key in ("model", "normalizer"):
-            if key in kw and not (Path(folder) / kw[key]).is_file():
-                raise m.error(key, f"file {kw[key]} not found in {folder}")
+        if m.get("normalizer") is not None or str(m.get("model", "")).endswith(".zip"):
+            raise UntrustedModel(
+                "model",
+                "a stable-baselines3 zip (and pickled normalizer) runs code when loaded; convert the folder "
+                f"once, trusting its source: frictiongym convert-model {folder} --trust-pickle --out DEST",
+                str(path),
+            )
+        kw["model"] = m.string("model")
+        file_in_folder(Path(folder), kw["model"], m, "model")
+        digests = m.get("sha256")
+        if not isinstance(digests, dict) or not all(
+            isinstance(k, str) and isinstance(v, str) and len(v) == 64 and set(v) <= set("0123456789abcdef")
+            for k, v in digests.items()
+        ):
+            raise m.error(
+                "sha256", f"expected a mapping of file name to SHA-256 (64 hex digits), got {digests!r}"
+            )
+        if kw["model"] not in digests:
+            raise m.error("sha256", f"no SHA-256 recorded for {kw['model']}")
+        kw["sha256"] = dict(digests)
+        network = m.get("network")
+        if not isinstance(network, dict):
+            raise m.error(
+                "network", f"expected the network's mapping (layers, observes, ...), got {network!r}"
+            )
+        kw["network"] = network
         for key in ("scenario", "base_controller", "command", "package_version", "git_commit"):
             if m.get(key) is not None:
                 kw[key] = m.string(key)

@@ -1,11 +1,13 @@
 """Controllers by name: the built-in set, the `frictiongym.controllers` entry-point group (a package
 registers `name = "module:factory"`, the factory taking no arguments and returning a Controller), and
-saved models: a folder with a manifest.yaml (name, algorithm, model file), or a folder of such folders.
+saved models: a folder with a manifest.yaml and policy.safetensors (agents/model_folder.py: a format
+that cannot run code), or a folder of such folders.
 
     manifest.yaml:  name: SAC-kang          # the leaderboard's name for it
-                    algorithm: SAC          # a stable-baselines3 or sb3-contrib class
-                    model: model.zip        # relative to the manifest (default model.zip)
-                    normalizer: vecnormalize.pkl   # optional: frozen VecNormalize statistics
+                    algorithm: SAC          # the algorithm that trained it (a record)
+                    model: policy.safetensors   # a file of the folder: weights, bounds, statistics
+                    network: {layers: [linear, relu, linear, relu, linear, tanh], observes: [14], ...}
+                    sha256: {policy.safetensors: 5f1c...}   # checked before the file is read
                     plants: [kang_robot]    # optional: plants it applies to
                     base_controller: RDFC   # optional: residual over this base (BUILTIN or BASES)...
                     alpha: 0.05             # ...with this authority (default 1)
@@ -44,9 +46,10 @@ from .classical import (
     StateFeedback,
     TaskScheduled,
 )
-from .learned import SB3Policy, policy_why_not
+from .learned import LearnedPolicy, policy_why_not
 from .limits import Ideal, Oracle
 from .manifest import MANIFEST, Manifest
+from .model_folder import read_policy
 
 ENTRY_POINT_GROUP = "frictiongym.controllers"
 
@@ -153,7 +156,9 @@ def model_dirs(paths: Sequence[str | Path]) -> list[Path]:
 
 
 def model_factory(folder: Path) -> tuple[str, Callable[[], Controller]]:
-    """(name, factory) of a saved model's folder, checked against its manifest."""
+    """(name, factory) of a saved model's folder, checked against its manifest and its files read now
+    (model_folder.read_policy: a changed or malformed file fails here, before any episode runs); each
+    controller the factory makes shares the one immutable network."""
     m = Manifest.read(folder)
     base = m.base_controller
     if base is not None:
@@ -161,19 +166,20 @@ def model_factory(folder: Path) -> tuple[str, Callable[[], Controller]]:
             base_controller(base)
         except ValueError as e:
             raise ConfigError("base_controller", str(e), str(folder / MANIFEST)) from None
-    norm = folder / m.normalizer if m.normalizer else None
+    network, normalizer = read_policy(folder, m)
 
     def factory() -> Controller:
-        return SB3Policy.load(
-            folder / m.model,
-            m.algorithm,
+        policy = LearnedPolicy(
+            network,
             m.plants,
             m.name,
-            normalizer=norm,
+            normalizer=normalizer,
             inputs=m.policy_inputs,
             base=base_controller(base) if base is not None else None,
             alpha=m.alpha,
         )
+        policy.hashes = {"model_sha256": m.sha256[m.model]}
+        return policy
 
     return m.name, factory
 

@@ -24,7 +24,8 @@ from gymnasium.envs import registration
 from frictiongym.envs.config import ConfigError
 
 from .evaluate import EnvCache
-from .learned import PolicyInputs, SB3Policy, algorithm_class
+from .learned import LearnedPolicy, PolicyInputs, algorithm_class
+from .model_folder import load_sb3_zip
 from .registry import base_controller
 from .training import (
     ResidualEnv,
@@ -96,10 +97,28 @@ def _params_dir(run: Path) -> Path:
     return next(p for p in run.iterdir() if p.is_dir() and (p / "config.yml").exists())
 
 
+class _ZooConfigLoader(yaml.SafeLoader):
+    """The safe loader plus the one Python tag rl-zoo writes into config.yml: an OrderedDict, read as a
+    plain mapping. Any other tag is refused, never constructed."""
+
+
+_ZooConfigLoader.add_constructor(
+    "tag:yaml.org,2002:python/object/apply:collections.OrderedDict",
+    lambda loader, node: dict(loader.construct_sequence(node, deep=True)[0]),
+)
+
+
 def zoo_config(run: str | Path) -> dict[str, Any]:
-    """The hyper-parameters a zoo run saved (its config.yml: an OrderedDict the zoo writes as a Python
-    object, hence the unsafe loader, on a file the zoo itself wrote)."""
-    return dict(yaml.load((_params_dir(Path(run)) / "config.yml").read_text(), Loader=yaml.UnsafeLoader))
+    """The hyper-parameters a zoo run saved (its config.yml), read safely (_ZooConfigLoader); a file it
+    cannot read is a ConfigError naming it."""
+    path = _params_dir(Path(run)) / "config.yml"
+    try:
+        data = yaml.load(path.read_text(), Loader=_ZooConfigLoader)
+    except yaml.YAMLError as e:
+        raise ConfigError("(yaml)", " ".join(str(e).split()), str(path)) from None
+    if not isinstance(data, dict):
+        raise ConfigError("(file)", "expected a mapping of hyper-parameters", str(path))
+    return data
 
 
 def zoo_env_kwargs(run: str | Path) -> dict[str, Any]:
@@ -107,9 +126,12 @@ def zoo_env_kwargs(run: str | Path) -> dict[str, Any]:
     return dict(zoo_config(run).get("env_kwargs") or {})
 
 
-def zoo_policy(run: str | Path, algo: str, name: str | None = None) -> SB3Policy:
+def zoo_policy(
+    run: str | Path, algo: str, name: str | None = None, *, trust_pickle: bool = False
+) -> LearnedPolicy:
     """A trained zoo agent as a controller of the suite: its final model, its frozen VecNormalize and,
-    from its saved config, the residual base and authority (Residual wrapper)."""
+    from its saved config, the residual base and authority (Residual wrapper). The zoo saves pickles
+    only (an SB3 zip, a VecNormalize): loading them runs their code, so only with trust_pickle."""
     run = Path(run)
     params = _params_dir(run)
     config = zoo_config(run)
@@ -120,27 +142,34 @@ def zoo_policy(run: str | Path, algo: str, name: str | None = None) -> SB3Policy
         (w[name_of_wrapper] for w in wrappers if isinstance(w, dict) and name_of_wrapper in w), None
     )
     model_zip = next(run.glob("*.zip"))
-    return SB3Policy.load(
-        model_zip,
-        algorithm_class(algo.upper()).__name__,
+    norm = params / "vecnormalize.pkl"
+    algorithm = algorithm_class(algo.upper()).__name__
+    model, stats = load_sb3_zip(
+        model_zip, norm if norm.exists() else None, algorithm, trust_pickle=trust_pickle
+    )
+    return LearnedPolicy(
+        model,
         name=name or f"zoo-{algo}-{run.name}",
-        normalizer=params / "vecnormalize.pkl" if (params / "vecnormalize.pkl").exists() else None,
+        normalizer=stats,
         inputs=PolicyInputs(base_action=residual is not None),
         base=base_controller(residual["base"]) if residual else None,
         alpha=residual["alpha"] if residual else 1.0,
     )
 
 
-def validate(run: str | Path, algo: str, env_id: str, episodes: int = 10) -> dict[str, Any]:
+def validate(
+    run: str | Path, algo: str, env_id: str, episodes: int = 10, *, trust_pickle: bool = False
+) -> dict[str, Any]:
     """A zoo agent against the best classical baseline on the first `episodes` validation-suite episodes
-    of the scenario it trained on (the selection the project's own training uses; never the test suite)."""
+    of the scenario it trained on (the selection the project's own training uses; never the test suite);
+    its files are pickles (zoo_policy): only with trust_pickle."""
 
     entry = gym.spec(env_id).entry_point
     scenario = zoo_env_kwargs(run).get("scenario") or registration.load_env_creator(entry).default_scenario
     eps = validation_episodes(scenario)[:episodes]
     envs = EnvCache()
     baseline = best_classical(scenario, classical_on(eps, envs))
-    agent = evaluate_controller(zoo_policy(run, algo), eps, envs)
+    agent = evaluate_controller(zoo_policy(run, algo, trust_pickle=trust_pickle), eps, envs)
     return {"scenario": scenario, "baseline": baseline, "agent": agent}
 
 

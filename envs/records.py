@@ -9,6 +9,7 @@ import os
 import shlex
 import subprocess
 import sys
+import uuid
 from collections.abc import Callable
 from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
@@ -16,14 +17,19 @@ from typing import Any
 
 
 def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    """write(tmp) into a temporary file beside path (same suffix: some writers append their own), flush it
-    to disk, then rename it over path."""
+    """write(tmp) into a temporary file of its own beside path (a unique name with path's suffix: some
+    writers append their own; two runs writing the same path never share one), flush it to disk, then
+    rename it over path. On any failure the temporary file is removed and path is left as it was."""
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{path.suffix}")
-    write(tmp)
-    with open(tmp, "rb+") as f:
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}-{uuid.uuid4().hex[:12]}.tmp{path.suffix}")
+    try:
+        write(tmp)
+        with open(tmp, "rb+") as f:
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def atomic_text(path: Path, text: str) -> None:

@@ -25,6 +25,7 @@ COMMANDS = {  # subcommand -> module of frictiongym.scripts
     "identify": "identify",
     "reproduce": "reproduce",
     "zoo": "zoo",
+    "convert-model": "convert_model",
     "check-draws": "check_draws",
     "bench-envs": "bench_envs",
     "bench-physics": "bench_physics",

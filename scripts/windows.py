@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 from pathlib import Path
 
 from tqdm import tqdm
@@ -23,7 +24,7 @@ from frictiongym.agents import registry
 from frictiongym.agents.evaluate import EnvCache
 from frictiongym.agents.windows import FIELDS, controller_windows, plot_windows
 from frictiongym.envs.records import atomic_text, csv_text
-from frictiongym.envs.scenario import load_scenario, scenario_names
+from frictiongym.envs.scenario import Scenario, load_scenario, scenario_names
 from frictiongym.envs.suites import Episode
 from frictiongym.scripts.leaderboard import seed_range
 
@@ -42,12 +43,21 @@ def main(argv: list[str] | None = None) -> int:
     if not args.window_s >= scenario.control_period:  # a window could hold no sample
         period = scenario.control_period
         ap.error(f"--window-s must be at least the control period, {period:g} s; got {args.window_s}")
+    try:
+        return run(args, scenario)
+    except ValueError as e:  # a bad controller name or model folder: one line naming it
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+
+
+def run(args: argparse.Namespace, scenario: Scenario) -> int:
+    """The windows of every controller asked for (main's checked options)."""
     models = [str(m) for m in args.models]
     if args.controllers:
         for name in args.controllers:
             reason = registry.why_not(name, models)(scenario)
             if reason is not None:
-                ap.error(f"{name} does not apply to {args.scenario}: {reason}")
+                raise ValueError(f"--controllers: {name} does not apply to {args.scenario}: {reason}")
         names = args.controllers
     else:
         names = [n for n in registry.default_entries(models) if registry.why_not(n, models)(scenario) is None]

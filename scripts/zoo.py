@@ -2,12 +2,13 @@
 
     python scripts/zoo.py train --algo sac --env frictiongym/KangRobot-v0 --conf-file configs/zoo/sac.yml
     python scripts/zoo.py record_video --algo sac --env frictiongym/KangRobot-v0 -f logs -n 500
-    python scripts/zoo.py validate --algo sac --env frictiongym/KangRobot-v0 -f logs
+    python scripts/zoo.py validate --algo sac --env frictiongym/KangRobot-v0 -f logs --trust-pickle
 
 train, enjoy and record_video are the zoo's own commands and take its options (record_video has no
 --gym-packages, hence this front end; videos need the video extra and MUJOCO_GL=egl). validate runs
 the latest zoo run of an id on the first validation-suite episodes of its scenario against the best
-classical baseline, through the leaderboard's evaluation loop.
+classical baseline, through the leaderboard's evaluation loop; the zoo saves its agents as pickles (an
+SB3 zip, a VecNormalize), which run code when loaded: validate reads them only with --trust-pickle.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ from frictiongym.agents.zoo import ZOO_COMMANDS, run_zoo_command, validate, zoo_
 from frictiongym.envs.scenario import load_scenario
 
 
-def main(argv: list[str] | None = None) -> None:
+def main(argv: list[str] | None = None) -> int | None:
     argv = sys.argv[1:] if argv is None else argv
     if argv and argv[0] in ZOO_COMMANDS:
         run_zoo_command(argv[0], argv[1:])
@@ -34,9 +35,16 @@ def main(argv: list[str] | None = None) -> None:
     v.add_argument("-f", "--folder", default="logs", help="the zoo's log folder")
     v.add_argument("--exp-id", type=int, default=0, help="0: the latest run")
     v.add_argument("--episodes", type=int, default=10, help="first validation-suite episodes")
+    v.add_argument(
+        "--trust-pickle", action="store_true", help="load the run's SB3 zip and VecNormalize (pickles)"
+    )
     args = p.parse_args(argv)
     run = zoo_run(args.folder, args.algo, args.env, args.exp_id)
-    out = validate(run, args.algo, args.env, args.episodes)
+    try:
+        out = validate(run, args.algo, args.env, args.episodes, trust_pickle=args.trust_pickle)
+    except ValueError as e:  # e.g. the pickles, without --trust-pickle
+        print(f"error: {e}", file=sys.stderr)
+        return 2
     b, a = out["baseline"], out["agent"]
     main = load_scenario(out["scenario"]).main_metric
     print(f"{run}: {out['scenario']}, first {args.episodes} validation episodes, {main} (lower is better)")

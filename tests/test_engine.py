@@ -2,6 +2,7 @@
 
 import csv
 import hashlib
+import io
 import json
 import math
 import shutil
@@ -12,6 +13,8 @@ import pytest
 
 from frictiongym.agents import engine, registry
 from frictiongym.agents.base import Zero
+from frictiongym.agents.model_convert import convert_folder
+from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
 
 EPISODES = [
@@ -51,6 +54,45 @@ def test_killed_run_resumes_to_the_same_file(serial, tmp_path):
     shutil.copy(out / "run.json", tmp_path / "run.json")
     (tmp_path / "episodes.csv").write_text("".join(lines[:4]) + lines[4][:25])  # 3 rows + a torn write
     rows, _ = engine.evaluate_to(tmp_path, CONTROLLERS, EPISODES, OPTIONS, workers=1, progress=False)
+    assert (tmp_path / "episodes.csv").read_bytes() == (out / "episodes.csv").read_bytes()
+    assert len(rows) == len(lines) - 1
+
+
+def _corrupt(line: str, field: str, value: str) -> str:
+    """An episodes.csv line with one field replaced."""
+    values = next(csv.reader([line]))
+    if field == "main":  # the episode's scenario's main metric
+        field = load_scenario(values[engine.FIELDS.index("scenario")]).main_metric
+    values[engine.FIELDS.index(field)] = value
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow(values)
+    return buf.getvalue()
+
+
+@pytest.mark.parametrize(
+    ("corrupt", "why"),
+    [
+        (lambda ls: [*ls[:2], _corrupt(ls[2], "main", "nan"), *ls[3:]], "a non-finite return or"),
+        (lambda ls: [*ls, ls[3]], "a second row"),
+        (lambda ls: [*ls[:2], _corrupt(ls[2], "git_commit", "0" * 40), *ls[3:]], "another code version"),
+        (lambda ls: [*ls[:2], _corrupt(ls[2], "seed", "9999"), *ls[3:]], "not an episode of this run"),
+        (lambda ls: [*ls[:2], ls[2].rsplit(",", 3)[0] + "\n", *ls[3:]], "fields where the header has"),
+        (lambda ls: [*ls[:2], _corrupt(ls[2], "diverged", "maybe"), *ls[3:]], "must be True or False"),
+        (lambda ls: [*ls[:2], _corrupt(ls[2], "seed", "11.5"), *ls[3:]], "invalid literal for int"),
+        (lambda ls: [*ls[:2], "\x00\xff garbage \x01\n", *ls[3:]], "fields where the header has"),
+    ],
+)
+def test_a_resumed_row_that_cannot_be_reused_is_named_and_rerun(serial, tmp_path, capsys, corrupt, why):
+    """A reused row must be a job of run.json, once, from this code version, with finite values where
+    the episode did not diverge; any other row (or one that does not parse) is named on stderr with the
+    file, the line and why, dropped and re-run: the file ends as the clean run's, never miscounted."""
+    out, _, _ = serial
+    lines = (out / "episodes.csv").read_text().splitlines(keepends=True)
+    shutil.copy(out / "run.json", tmp_path / "run.json")
+    (tmp_path / "episodes.csv").write_text("".join(corrupt(lines)))
+    rows, _ = engine.evaluate_to(tmp_path, CONTROLLERS, EPISODES, OPTIONS, workers=1, progress=False)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"{tmp_path / 'episodes.csv'}: line ") and why in err[0], err
     assert (tmp_path / "episodes.csv").read_bytes() == (out / "episodes.csv").read_bytes()
     assert len(rows) == len(lines) - 1
 
@@ -99,10 +141,11 @@ def test_saved_model_is_an_entry_and_a_mismatched_scenario_is_skipped_with_its_r
     from frictiongym.agents import leaderboard
     from frictiongym.envs.servo_env import ServoEnv
 
-    folder = tmp_path / "models" / "ppo_kang"
-    folder.mkdir(parents=True)
-    PPO("MlpPolicy", ServoEnv("kang_regulation"), n_steps=64, seed=0, device="cpu").save(folder / "model.zip")
-    (folder / "manifest.yaml").write_text("name: PPO-kang\nalgorithm: PPO\nmodel: model.zip\n")
+    sb3 = tmp_path / "sb3" / "ppo_kang"
+    sb3.mkdir(parents=True)
+    PPO("MlpPolicy", ServoEnv("kang_regulation"), n_steps=64, seed=0, device="cpu").save(sb3 / "model.zip")
+    (sb3 / "manifest.yaml").write_text("name: PPO-kang\nalgorithm: PPO\nmodel: model.zip\n")
+    folder = convert_folder(sb3, tmp_path / "models", trust_pickle=True)
     episodes = [Episode("kang_regulation", 5, True), Episode("m220_reversal_tracking", 5, True)]
     out = tmp_path / "lb"
     leaderboard.run("inline", ["PD", "PPO-kang"], out, False, 1, episodes, (tmp_path / "models",))
@@ -111,7 +154,7 @@ def test_saved_model_is_an_entry_and_a_mismatched_scenario_is_skipped_with_its_r
     assert [r["scenario"] for r in model_rows] == ["kang_regulation"]  # 3 observations there, 9 on the M220
     assert (
         json.loads(model_rows[0]["controller_params"])["model_sha256"]
-        == hashlib.sha256((folder / "model.zip").read_bytes()).hexdigest()
+        == hashlib.sha256((folder / "policy.safetensors").read_bytes()).hexdigest()
     )
     _, skipped = engine.plan(["PPO-kang"], episodes, (str(tmp_path / "models"),))
     assert skipped == [

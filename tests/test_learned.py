@@ -1,7 +1,9 @@
-"""Learned controllers (agents/learned.py): the model input, the algorithm classes, SB3Policy's prediction
+"""Learned controllers (agents/learned.py): the model input, the algorithm classes, LearnedPolicy's prediction
 path against model.predict, and actions on many episodes' rows at once."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
@@ -12,7 +14,14 @@ from conftest import SCENARIO, write_config
 
 from frictiongym.agents import registry
 from frictiongym.agents.evaluate import EnvCache
-from frictiongym.agents.learned import PolicyInputs, RowwiseActor, SB3Policy, residual_action
+from frictiongym.agents.learned import (
+    LayerNetwork,
+    LearnedPolicy,
+    PolicyInputs,
+    RowwiseActor,
+    SB3Network,
+    residual_action,
+)
 from frictiongym.agents.training import build_model, load_config, make_training_env, validation_episodes
 
 
@@ -71,7 +80,7 @@ def test_differences_are_the_tracking_error_and_the_reference_change_over_the_pr
     ],
 )
 def test_policy_actions_equal_sb3_predict(tmp_path, algo, privileged):
-    """SB3Policy's own prediction path (no per-call eval-mode switch, no action distribution, its layers
+    """SB3Network's own prediction path (no per-call eval-mode switch, no action distribution, its layers
     called as a plain chain) gives model.predict's actions bit for bit, in range and out of it, also after
     training switched the policy back to train mode, and with the asymmetric actor's feature selection."""
     extra = {"observation": {"privileged_critic": True}} if privileged else {}
@@ -83,10 +92,10 @@ def test_policy_actions_equal_sb3_predict(tmp_path, algo, privileged):
     with torch.no_grad():  # a non-trivial actor: the zeroed output layer would make every action equal
         for p in model.policy.parameters():
             p.add_(0.05 * torch.randn_like(p))
-    policy = SB3Policy(model, inputs=cfg.inputs, base=registry.BUILTIN["PID"]())  # the config's residual base
+    network = SB3Network(model)
     xs = np.random.default_rng(0).normal(0.0, 3.0, (50, *model.observation_space.shape)).astype(np.float32)
     model.policy.set_training_mode(True)
-    got = np.array([policy._predict(x) for x in xs])
+    got = np.array([network._predict(x) for x in xs])
     assert not model.policy.training
     want = np.array([model.predict(x, deterministic=True)[0] for x in xs])
     assert np.array_equal(got, want) and len(np.unique(got)) > 10
@@ -101,15 +110,15 @@ def test_policy_actions_equal_sb3_predict(tmp_path, algo, privileged):
         ("SAC", True, True),
         ("TD3", True, True),
         ("CrossQ", False, False),
-        ("PPO", False, False),
+        ("PPO", False, True),
     ],
 )
 def test_policy_rows_act_as_each_row_alone(tmp_path, algo, privileged, rowwise):
-    """SB3Policy.actions on a batch of observations gives, row for row and bit for bit, the action each
+    """LearnedPolicy.actions on a batch of observations gives, row for row and bit for bit, the action each
     row gets alone (what lets the leaderboard run a learned model's episodes with one network call per
     step); the row-wise float64 actor (SAC-family and TD3 actors of Linear/ReLU/Tanh layers, the
     asymmetric actor's column selection included) is model.predict's network to float32 rounding, and any
-    other actor (CrossQ's batch renormalisation, PPO) is called one row at a time."""
+    other actor (CrossQ's batch renormalisation) is called one row at a time."""
     extra = {"observation": {"privileged_critic": True}} if privileged else {}
     (cfg,) = load_config(write_config(tmp_path, algo, **extra))
     model = build_model(cfg, make_training_env(cfg, 0), 0, None)
@@ -120,7 +129,7 @@ def test_policy_rows_act_as_each_row_alone(tmp_path, algo, privileged, rowwise):
             p.add_(0.05 * torch.randn_like(p))
     model.policy.set_training_mode(False)
     assert (RowwiseActor.of(model.policy) is not None) == rowwise
-    policy = SB3Policy(model, inputs=cfg.inputs, base=registry.BUILTIN["PID"]())
+    policy = LearnedPolicy(model, inputs=cfg.inputs, base=registry.BUILTIN["PID"]())
     d = model.observation_space.shape[0] - 1  # the env's observation; the base action is appended
     rng = np.random.default_rng(0)
     obs = rng.normal(0.0, 3.0, (64, d)).astype(np.float32)
@@ -131,7 +140,8 @@ def test_policy_rows_act_as_each_row_alone(tmp_path, algo, privileged, rowwise):
     assert np.array_equal(policy.actions(obs[:7], base[:7]), together[:7])
     x = np.concatenate([obs, base], axis=1)
     want = np.array([model.predict(row, deterministic=True)[0] for row in x])
-    got = policy._network(x)
+    got = policy.network(x)
+    assert isinstance(policy.network, LayerNetwork) == rowwise
     assert np.abs(got - want).max() <= (1e-5 if rowwise else 0.0) and len(np.unique(got)) > 10
 
 
@@ -253,15 +263,21 @@ def test_a_differences_model_sees_in_evaluation_what_its_training_env_gave(tmp_p
     own = tmp_path / "kang_regulation_preview.yaml"
     own.write_text("extends: kang_regulation\nreference: {type: constant, value: 0.0, preview_steps: 5}\n")
 
-    def policy() -> SB3Policy:
-        return SB3Policy(
+    def policy() -> LearnedPolicy:
+        return LearnedPolicy(
             model, ("kang_robot",), inputs=cfg.inputs, base=registry.make("PID"), alpha=cfg.alpha
         )
 
     seen: list[np.ndarray] = []
     shown_policy = policy()
-    network = shown_policy._network
-    shown_policy._network = lambda x: (seen.append(x.copy()), network(x))[1]
+    network = shown_policy.network
+
+    class Shown(type(network)):  # the same network, each model input it is given kept
+        def __call__(self, x: np.ndarray) -> np.ndarray:
+            seen.append(x.copy())
+            return super().__call__(x)
+
+    shown_policy.network = Shown(*(getattr(network, f.name) for f in dataclasses.fields(network)))
     seeds = (500000, 500001)
     filled = run_episodes(policy(), [Episode("kang_regulation", s, True) for s in seeds], keep_log=True)
     shown = run_episodes(shown_policy, [Episode(str(own), s, True) for s in seeds], keep_log=True)

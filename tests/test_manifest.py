@@ -21,25 +21,34 @@ def test_every_committed_manifest_reads_and_writes_back_byte_for_byte():
         assert yaml.safe_dump(m.as_dict(), sort_keys=False) == (folder / MANIFEST).read_text(), folder
 
 
-def test_a_hand_made_manifest_needs_a_name_and_an_algorithm_only(tmp_path):
-    (tmp_path / "model.zip").write_bytes(b"")
-    (tmp_path / MANIFEST).write_text("name: PPO-kang\nalgorithm: PPO\n")
+def test_a_minimal_manifest_needs_the_model_its_network_and_its_sha256(tmp_path):
+    """name, algorithm, model, network and sha256 are enough (then no base, α = 1, any plant)."""
+    (tmp_path / "policy.safetensors").write_bytes(b"")
+    head = "name: PPO-kang\nalgorithm: PPO\nmodel: policy.safetensors\nnetwork: {layers: [linear]}\n"
+    (tmp_path / MANIFEST).write_text(head + f"sha256: {{policy.safetensors: {'ab' * 32}}}\n")
     m = Manifest.read(tmp_path)
-    assert (m.model, m.normalizer, m.plants, m.alpha) == ("model.zip", None, (), 1.0)
+    assert (m.model, m.plants, m.alpha) == ("policy.safetensors", (), 1.0)
     assert m.policy_inputs == PolicyInputs()
-    (tmp_path / MANIFEST).write_text("name: R\nalgorithm: SAC\nbase_controller: PID\n")
+    (tmp_path / MANIFEST).write_text(
+        head + f"sha256: {{policy.safetensors: {'ab' * 32}}}\nbase_controller: PID\n"
+    )
     assert Manifest.read(tmp_path).policy_inputs == PolicyInputs(base_action=True)  # a residual sees its base
 
 
 def test_the_differences_input_is_written_when_on_and_read_back(tmp_path):
     """`inputs.differences` (a later input) appears in a manifest only when on, and reads back as written;
     older manifests without it read as off."""
-    (tmp_path / "model.zip").write_bytes(b"")
-    on = Manifest("R", "SAC", base_controller="PID", inputs=PolicyInputs(base_action=True, differences=True))
+    (tmp_path / "policy.safetensors").write_bytes(b"")
+    files = {"network": {"layers": ["linear"]}, "sha256": {"policy.safetensors": "ab" * 32}}
+    on = Manifest(
+        "R", "SAC", **files, base_controller="PID", inputs=PolicyInputs(base_action=True, differences=True)
+    )
     on.write(tmp_path)
     assert "differences: true" in (tmp_path / MANIFEST).read_text()
     assert Manifest.read(tmp_path).policy_inputs == PolicyInputs(base_action=True, differences=True)
-    Manifest("R", "SAC", base_controller="PID", inputs=PolicyInputs(base_action=True)).write(tmp_path)
+    Manifest("R", "SAC", **files, base_controller="PID", inputs=PolicyInputs(base_action=True)).write(
+        tmp_path
+    )
     assert "differences" not in (tmp_path / MANIFEST).read_text()
     assert Manifest.read(tmp_path).policy_inputs == PolicyInputs(base_action=True)
 
@@ -47,16 +56,27 @@ def test_the_differences_input_is_written_when_on_and_read_back(tmp_path):
 @pytest.mark.parametrize(
     ("text", "field"),
     [
-        ("name: A\nalgorithm: PPO\nalgoritm: SAC\n", "algoritm"),  # a typo is an unknown key
-        ("name: A\nalgorithm: PPO\nnormalizer: stats.pkl\n", "normalizer"),  # a file that is not there
-        ("name: ''\nalgorithm: PPO\n", "name"),
-        ("name: A\nalgorithm: PPO\nalpha: -1\n", "alpha"),
-        ("name: A\nalgorithm: PPO\nplants: m220\n", "plants"),
+        ("algoritm: SAC\n", "algoritm"),  # a typo is an unknown key
+        ("normalizer: stats.pkl\n", "model"),  # a pickle: refused, naming the conversion
+        ("model: other.safetensors\n", "model"),  # a file that is not there
+        ("sha256: {policy.safetensors: abc}\n", "sha256"),
+        ("network: [linear]\n", "network"),
+        ("name: ''\n", "name"),
+        ("alpha: -1\n", "alpha"),
+        ("plants: m220\n", "plants"),
     ],
 )
 def test_a_bad_manifest_is_an_error_naming_the_file_and_key(tmp_path, text, field):
-    (tmp_path / "model.zip").write_bytes(b"")
-    (tmp_path / MANIFEST).write_text(text)
+    (tmp_path / "policy.safetensors").write_bytes(b"")
+    good = {
+        "name": "A",
+        "algorithm": "PPO",
+        "model": "policy.safetensors",
+        "network": {"layers": ["linear"]},
+        "sha256": {"policy.safetensors": "ab" * 32},
+    }
+    bad = yaml.safe_load(text)
+    (tmp_path / MANIFEST).write_text(yaml.safe_dump({**good, **bad}, sort_keys=False))
     with pytest.raises(ConfigError) as e:
         Manifest.read(tmp_path)
     assert e.value.field == field and e.value.source == str(tmp_path / MANIFEST)

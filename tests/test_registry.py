@@ -23,26 +23,34 @@ def test_a_saved_models_applicability_from_its_manifest_equals_the_loaded_models
     assert 0 < applies < len(names) * len(scenarios)  # some apply, some are refused (other plants, shapes)
 
 
-def test_every_committed_model_acts_through_the_rowwise_actor_within_float32_rounding_of_predict():
-    """The leaderboard's learned rows use one network call per step for a chunk's episodes only for
-    actors RowwiseActor knows; every committed model's is one, and its actions are model.predict's to
+def test_every_committed_model_is_numpy_layers_within_float32_rounding_of_torch_s_forward():
+    """Every committed model loads as a LayerNetwork (numpy layers from policy.safetensors: no SB3 model,
+    no pickle), whose float64 row-wise actions are the float32 torch forward of the same weights to
     float32 rounding (|difference| <= 1e-5 on inputs spread over the normalised range: torch sums 64
-    float32 terms per unit, measured up to 1.2e-6 here)."""
+    float32 terms per unit, measured up to 1.2e-6 on these models when they were SB3 zips)."""
     import numpy as np
+    import torch
 
-    from frictiongym.agents.learned import RowwiseActor
+    from frictiongym.agents.learned import LayerNetwork
 
     folders = registry.committed_models(*registry.LEADERBOARD_GROUPS, "sim2real")
     models = tuple(str(f) for f in folders)
     rng = np.random.default_rng(2)
     for name in registry._manifests(models):
-        model = registry.make(name, models).model
-        model.policy.set_training_mode(False)
-        actor = RowwiseActor.of(model.policy)
-        assert actor is not None, name
-        x = rng.normal(0.0, 2.0, (50, *model.observation_space.shape)).astype(np.float32)
-        want = np.array([model.predict(row, deterministic=True)[0] for row in x])
-        assert np.abs(model.policy.unscale_action(actor(x)) - want).max() <= 1e-5, name
+        network = registry.make(name, models).network
+        assert isinstance(network, LayerNetwork), name
+        x = rng.normal(0.0, 2.0, (50, *network.observes)).astype(np.float32)
+        h = torch.as_tensor(x if network.actor.columns is None else x[:, network.actor.columns])
+        for kind, w, b in network.actor.layers:
+            if kind == "linear":
+                h = torch.nn.functional.linear(
+                    h, torch.as_tensor(w.T.astype(np.float32)), torch.as_tensor(b.astype(np.float32))
+                )
+            else:
+                h = torch.relu(h) if kind == "relu" else torch.tanh(h)
+        assert network.scale.squash, name
+        want = network.scale(h.numpy())
+        assert np.abs(network(x) - want).max() <= 1e-5 and len(np.unique(want)) > 10, name
 
 
 def test_the_default_leaderboard_runs_the_specialists_and_one_generalist_set_per_plant_it_has():

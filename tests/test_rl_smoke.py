@@ -55,13 +55,13 @@ def test_short_sac_run_beats_random_and_zero_policies():
 
 def test_a_learned_policy_runs_through_the_same_evaluation_loop():
     from frictiongym.agents.evaluate import evaluate
-    from frictiongym.agents.learned import SB3Policy
+    from frictiongym.agents.learned import LearnedPolicy
     from frictiongym.envs.suites import Episode
 
     env = gym.make("frictiongym/KangRobot-v0", episode_s=0.4)
     model = PPO("MlpPolicy", env, n_steps=64, batch_size=32, seed=0).learn(64)
     res = evaluate(
-        [SB3Policy(model, ("kang_robot",), "ppo-tiny")],
+        [LearnedPolicy(model, ("kang_robot",), "ppo-tiny")],
         [Episode("kang_regulation", 0, False), Episode("m220_regulation", 0, False)],
         progress=False,
     )

@@ -84,7 +84,7 @@ def test_zoo_train_then_load_as_a_controller_then_record_video(tmp_path):
     _run("-m", "rl_zoo3.train", *common, *train, "--seed", "1", env=env)
     run = zoo_run(tmp_path / "logs", "sac", "frictiongym/M220-v0")
     assert zoo_env_kwargs(run)["scenario"] == "m220_reversal_tracking"
-    policy = zoo_policy(run, "sac")
+    policy = zoo_policy(run, "sac", trust_pickle=True)
     assert policy.base.name == "CoulombViscousFF" and policy.alpha == 0.1
     from frictiongym.envs.scenario import load_scenario
 
@@ -93,5 +93,5 @@ def test_zoo_train_then_load_as_a_controller_then_record_video(tmp_path):
     _run(zoo, "record_video", *common, "-n", "20", "-o", str(tmp_path / "videos"), env=env)
     [video] = list((tmp_path / "videos").glob("*.mp4"))
     assert video.stat().st_size > 1000
-    out = _run(zoo, "validate", *common, "--episodes", "1", env=env)
+    out = _run(zoo, "validate", *common, "--episodes", "1", "--trust-pickle", env=env)
     assert "best classical" in out and "zoo agent" in out

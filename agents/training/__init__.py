@@ -7,10 +7,13 @@ A training config (configs/agents/<name>.yaml, rl-zoo style) gives `defaults` an
 that override them; every key is checked (unknown keys, types, ranges: errors naming the file and field).
 One run = (config, scenario, seed) and writes a model folder the leaderboard loads (--models):
 
-    model.zip, vecnormalize.pkl   the model selected on the validation suite and its frozen statistics
-    manifest.yaml                 algorithm, scenario, base controller, α, hyper-parameters, seed, steps,
-                                  wall time, the exact command, package version, validation score
-    validation.csv, training_curve.png, tb/ (TensorBoard), checkpoint/ (for --resume)
+    policy.safetensors            the model selected on the validation suite: its actor's layers, action
+                                  bounds and frozen statistics (agents/model_folder.py: no pickle)
+    manifest.yaml                 algorithm, network, SHA-256, scenario, base controller, α,
+                                  hyper-parameters, seed, steps, wall time, the exact command, package
+                                  version, validation score
+    validation.csv, training_curve.png, tb/ (TensorBoard), checkpoint/ (for --resume: one complete set
+                                  per checkpoint, named by checkpoint/LATEST)
 
 Rules it enforces: training episodes use seeds from TRAINING_SEEDS (disjoint from every suite); the model
 is selected on the `validation` suite only, by the scenario's main metric, among evaluations whose
@@ -36,7 +39,7 @@ from .config import (
 )
 from .env import ResidualEnv, make_training_env, training_env_kwargs
 from .model import build_model, zero_output
-from .run import EXPORTED, NothingSelected, TrainingRun, export_model, run_dir, train_many, train_one
+from .run import RECORDS, NothingSelected, TrainingRun, export_model, run_dir, train_many, train_one
 from .validation import (
     Baseline,
     Snapshot,
@@ -51,12 +54,12 @@ from .vec_env import SEEDS_PER_RUN, TRAINING_SEEDS, TrainingVecEnv, episode_seed
 __all__ = [
     "ALGORITHMS",
     "ASYMMETRIC",
-    "EXPORTED",
     "JAX",
     "MANIFEST",
     "MODEL",
     "NORMALIZER",
     "OFF_POLICY",
+    "RECORDS",
     "SEEDS_PER_RUN",
     "TRAINING_SEEDS",
     "VALIDATION_SUITE",

@@ -94,7 +94,7 @@ def training_env_kwargs(cfg: RunConfig) -> dict[str, Any]:
         raise ConfigError(
             "residual.base", f"{cfg.base} does not apply to {cfg.scenario}: {reason}", cfg.source
         )
-    probe = SB3PolicyShape(cfg.inputs, base)
+    probe = PolicyShape(cfg.inputs, base)
     return {"randomize": cfg.randomize, "overrides": controller_overrides(probe, sc, scenario_overrides(cfg))}
 
 
@@ -117,7 +117,7 @@ def make_training_env(cfg: RunConfig, seed: int, nthread: int = 1) -> TrainingVe
     )
 
 
-class SB3PolicyShape(LearnedNeeds, Controller):
+class PolicyShape(LearnedNeeds, Controller):
     """A learned controller's needs (LearnedNeeds) without a model: builds the training env exactly as the
     evaluation builds the trained controller's."""
 

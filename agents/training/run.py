@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import io
 import json
 import math
 import multiprocessing as mp
@@ -13,7 +12,7 @@ import os
 import shutil
 import sys
 import time
-import zipfile
+import uuid
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -55,6 +54,7 @@ from .validation import (
 from .vec_env import SEEDS_PER_RUN, TRAINING_SEEDS
 
 VALIDATION_CSV = "validation.csv"  # a run's validation rows, one per evaluation
+STATE, LATEST, REPLAY_BUFFER = "state.json", "LATEST", "replay_buffer.pkl"  # a checkpoint's files
 
 
 class NothingSelected(RuntimeError):
@@ -106,6 +106,7 @@ class TrainingRun:
         self.reporter: Callable[[dict[str, float]], None] | None = None  # e.g. Ray Tune's report
         self.logger: Any = None  # the model's logger (validation metrics to TensorBoard)
         self.last_snapshot: Snapshot | None = None  # the model of the latest validation (the checkpoint's)
+        self.best_files: dict[str, Any] = {}  # the selected model's manifest fields (Snapshot.write_model)
         # the code that trains the model: package version and commit when the run starts (a resumed run
         # keeps its first start's, train); read before the baselines' evaluation, which takes a while
         self.prov: dict[str, str] = provenance()
@@ -187,7 +188,7 @@ class TrainingRun:
             better = row["admissible"] and (self.best is None or row["main"] < self.best["main"])
         if better:
             self.best = row
-            snap.write(self.out)
+            self.best_files = snap.write_model(self.out)
         atomic_text(self.out / VALIDATION_CSV, csv_text(self.history))
         if self.reporter is not None:
             self.reporter(row)
@@ -217,27 +218,56 @@ class TrainingRun:
 
     # ----------------------------------------------------------------------------- checkpoints
     def checkpoint(self, model: Any, snap: Snapshot) -> None:
-        """The model now (snap: its snapshot), normalizer, replay buffer and this run's state into
-        out/checkpoint, each atomically; an evaluation still running is re-run on --resume."""
-        ck = self.out / "checkpoint"
+        """One consistent set for --resume: the model now (snap: its snapshot), its normalizer, replay
+        buffer, the run's state and a copy of the selected model's files, written into a new folder
+        out/checkpoint/<step>-<id>/ that is complete before out/checkpoint/LATEST (one atomic rename)
+        names it; the sets it replaces are removed after. A stop at any point leaves LATEST naming a
+        complete set. An evaluation still running is re-run on --resume."""
+        root = self.out / "checkpoint"
+        root.mkdir(parents=True, exist_ok=True)
+        ck = root / f"{model.num_timesteps:012d}-{uuid.uuid4().hex[:8]}"
         snap.write(ck)
         if hasattr(model, "replay_buffer") and model.replay_buffer is not None:
-            atomic_write(ck / "replay_buffer.pkl", lambda p: model.save_replay_buffer(p))
-        self.write_state(model)
-
-    def write_state(self, model: Any) -> None:
+            atomic_write(ck / REPLAY_BUFFER, lambda p: model.save_replay_buffer(p))
+        best = ck / "best"
+        best.mkdir()
+        for f in self.best_files.get("sha256", {}):
+            shutil.copy2(self.out / f, best / f)
         state = {
             "num_timesteps": model.num_timesteps,
             "wall_s": self.elapsed(),
             "history": self.history,
             "eval_s": self.eval_s,
             "best": self.best,
+            "best_files": self.best_files,
             "next_eval": self.next_eval,
             "episodes": model.get_env().get_attr("episodes"),
             "pending": [p.meta for p in self.pending],  # at most the checkpoint's own model
             "provenance": self.prov,
         }
-        atomic_text(self.out / "checkpoint" / "state.json", json.dumps(state))
+        atomic_text(ck / STATE, json.dumps(state))
+        _fsync_dir(ck)
+        atomic_text(root / LATEST, ck.name + "\n")
+        for old in root.iterdir():
+            if old.is_dir() and old != ck:
+                shutil.rmtree(old, ignore_errors=True)
+
+    def latest_checkpoint(self) -> Path | None:
+        """The complete set out/checkpoint/LATEST names (None without one); a checkpoint of another form
+        (an older version's, or LATEST naming no complete set) is refused with one line."""
+        root = self.out / "checkpoint"
+        if (root / STATE).exists():
+            raise ConfigError(
+                "--resume",
+                "this checkpoint was written by an older frictiongym; start the run again",
+                str(root),
+            )
+        if not (root / LATEST).exists():
+            return None
+        ck = root / (root / LATEST).read_text().strip()
+        if ck.parent != root or not (ck / STATE).is_file() or not (ck / MODEL).is_file():
+            raise ConfigError("--resume", f"LATEST names {ck.name}, not a complete checkpoint", str(root))
+        return ck
 
     # ----------------------------------------------------------------------------- the run
     def train(self, resume: bool = False) -> dict[str, Any]:
@@ -249,10 +279,10 @@ class TrainingRun:
 
         torch.set_num_threads(1)
         cfg, out = self.cfg, self.out
-        ck = out / "checkpoint"
+        ck = self.latest_checkpoint()
         if (out / MANIFEST).exists() and not resume:
             raise FileExistsError(f"{out} holds a finished run; use another --out, or --resume to extend it")
-        if not resume and (ck / "state.json").exists():
+        if not resume and ck is not None:
             raise FileExistsError(f"{out} holds an unfinished run: continue it with --resume")
         out.mkdir(parents=True, exist_ok=True)
         rows = {sc: classical_rows(episodes, self.envs) for sc, episodes in self.groups.items()}
@@ -274,22 +304,26 @@ class TrainingRun:
         venv: Any = VecMonitor(make_training_env(cfg, self.seed), str(out / "monitor"))
         gamma = cfg.hyperparams.get("gamma", 0.99)
         state = None
-        if resume and (ck / "state.json").exists():
-            state = json.loads((ck / "state.json").read_text())
+        if resume and ck is not None:
+            state = json.loads((ck / STATE).read_text())
             if (ck / NORMALIZER).exists():
                 venv = VecNormalize.load(str(ck / NORMALIZER), venv)
                 venv.training = True
             model = algorithm_class(cfg.algorithm).load(str(ck / MODEL), env=venv, device="cpu")
             model.tensorboard_log = str(out / "tb")
-            if (ck / "replay_buffer.pkl").exists():
-                model.load_replay_buffer(str(ck / "replay_buffer.pkl"))
+            if (ck / REPLAY_BUFFER).exists():
+                model.load_replay_buffer(str(ck / REPLAY_BUFFER))
             for i, n in enumerate(state["episodes"]):
                 venv.env_method("set_episodes", n, indices=[i])
             self.history, self.best, self.next_eval = state["history"], state["best"], state["next_eval"]
+            self.best_files = state["best_files"]
+            for f in self.best_files.get("sha256", {}):  # the selected model as the checkpoint knew it
+                data = (ck / "best" / f).read_bytes()
+                atomic_write(out / f, lambda p, data=data: p.write_bytes(data))
             self.wall_before, self.eval_s = state["wall_s"], state.get("eval_s", 0.0)
             self.prov = state.get("provenance") or self.prov  # the code the run first started with
             for meta in state.get("pending", []):  # the checkpoint's model, not evaluated before the stop
-                snap = Snapshot.read(ck)
+                snap = Snapshot.read(ck, cfg.algorithm)
                 self._record(meta, snap, evaluate_snapshot(cfg, self.name, snap, self.groups))
         else:
             if cfg.normalize_observation or cfg.normalize_reward:
@@ -311,9 +345,10 @@ class TrainingRun:
                 )
                 self.collect(block=True)  # so that a pending evaluation is always the checkpoint's model
                 evaluated = self.history and self.history[-1]["step"] == model.num_timesteps
-                self.checkpoint(model, Snapshot.of(model) if evaluated else self.validate(model))
+                snap = Snapshot.of(model) if evaluated else self.validate(model)
+                self.checkpoint(model, snap)
                 self.collect(block=True)  # the final model's evaluation
-                self.write_state(model)
+                self.checkpoint(model, snap)
         finally:
             if self.pool is not None:
                 self.pool.shutdown(cancel_futures=True)
@@ -335,8 +370,9 @@ class TrainingRun:
         return Manifest(
             name=self.name,
             algorithm=cfg.algorithm,
-            model=MODEL,
-            normalizer=NORMALIZER if (self.out / NORMALIZER).exists() else None,
+            model=self.best_files["model"],
+            network=self.best_files.get("network", {}),
+            sha256=self.best_files["sha256"],
             scenario=cfg.scenario,
             plants=(load_scenario(cfg.scenario).spec.name,),
             base_controller=cfg.base,
@@ -383,6 +419,15 @@ class TrainingRun:
         )
 
 
+def _fsync_dir(folder: Path) -> None:
+    """A folder's entries (the files just renamed into it) on disk, before anything names the folder."""
+    fd = os.open(folder, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
 def plot_curve(
     history: list[dict[str, float]], baseline: Baseline, main: str, path: Path, title: str
 ) -> None:
@@ -410,42 +455,17 @@ def run_dir(out: Path, cfg: RunConfig, seed: int) -> Path:
     return Path(out) / cfg.name / cfg.scenario / f"seed{seed}"
 
 
-EXPORTED = (MODEL, NORMALIZER, MANIFEST, VALIDATION_CSV, "training_curve.png")
-
-
-def without_optimizer_state(model_zip: bytes) -> bytes:
-    """A saved SB3 model (model.zip's bytes) with its optimizers' running state emptied (Adam's moments:
-    about half of an SAC model's file), every other entry, the networks' weights included, byte for byte.
-    What acting needs, not what resuming training needs (a run's checkpoint keeps the full model); the
-    entries stay, so SB3's load (which asks for every optimizer by name) reads it unchanged."""
-    import torch
-
-    out = io.BytesIO()
-    with zipfile.ZipFile(io.BytesIO(model_zip)) as src, zipfile.ZipFile(out, "w") as dst:
-        for info in src.infolist():
-            data = src.read(info)
-            if info.filename.endswith(".pth"):
-                obj = torch.load(io.BytesIO(data), map_location="cpu", weights_only=True)
-                if isinstance(obj, dict) and set(obj) == {"state", "param_groups"}:  # an optimizer's
-                    buf = io.BytesIO()
-                    torch.save({"state": {}, "param_groups": obj["param_groups"]}, buf)
-                    data = buf.getvalue()
-            dst.writestr(info, data)
-    return out.getvalue()
+RECORDS = (VALIDATION_CSV, "training_curve.png")  # a run's records copied with its model
 
 
 def export_model(run: Path, dest: Path) -> Path:
-    """Copy a finished run's model folder (model, statistics, manifest, validation record, curve; not the
-    checkpoint or logs) to dest/<name>/, e.g. into agents/models/headline/ to commit it; the model without
-    its optimizers' state (without_optimizer_state: the committed models stay small)."""
-    folder = Path(dest) / Manifest.read(Path(run)).name
+    """Copy a finished run's model folder (manifest, the files it names, validation record, curve; not
+    the checkpoint or logs) to dest/<name>/, e.g. into agents/models/generalist/ to commit it."""
+    m = Manifest.read(Path(run))
+    folder = Path(dest) / m.name
     folder.mkdir(parents=True, exist_ok=True)
-    model = Path(run) / MODEL
-    if model.exists():
-        slim = without_optimizer_state(model.read_bytes())
-        atomic_write(folder / MODEL, lambda p: p.write_bytes(slim))
-    for f in EXPORTED:
-        if f != MODEL and (Path(run) / f).exists():
+    for f in (*m.sha256, *RECORDS, MANIFEST):
+        if (Path(run) / f).exists():
             shutil.copy2(Path(run) / f, folder / f)
     return folder
 

@@ -25,11 +25,9 @@ from frictiongym.envs.suites import load_suite, suite_held_out
 
 from ..base import ZERO, Controller
 from ..evaluate import EnvCache, run_episodes
-from ..learned import (
-    SB3Policy,
-    algorithm_class,
-)
+from ..learned import LayerNetwork, LearnedPolicy, Normalizer, algorithm_class, network_of
 from ..manifest import MODEL, NORMALIZER
+from ..model_folder import sha256_bytes, write_policy
 from ..registry import BUILTIN, base_controller
 from .config import VALIDATION_SUITE, RunConfig
 
@@ -101,11 +99,15 @@ def gradient_steps(model: Any) -> int:
 
 @dataclass(frozen=True)
 class Snapshot:
-    """A model as saved (model.zip bytes) with its VecNormalize's pickle (None without one): what is
-    evaluated, kept as the best model, and checkpointed."""
+    """A model at one step. For resuming (the run's checkpoint): its SB3 zip and its VecNormalize's
+    pickle (None without one), written and read by this run only. For evaluating and keeping as the
+    selected model: its network as layers (LayerNetwork, None for a policy the safe format cannot hold:
+    then the zip is evaluated) and its frozen observation statistics."""
 
     model: bytes
     normalizer: bytes | None
+    network: LayerNetwork | None
+    stats: Normalizer | None
 
     @classmethod
     def of(cls, model: Any) -> Snapshot:
@@ -114,18 +116,41 @@ class Snapshot:
         buf = io.BytesIO()
         model.save(buf)
         venv = model.get_env()  # a VecNormalize pickles without the env it wraps
-        return cls(buf.getvalue(), pickle.dumps(venv) if isinstance(venv, VecNormalize) else None)
+        norm = venv if isinstance(venv, VecNormalize) else None
+        network = network_of(model)
+        return cls(
+            buf.getvalue(),
+            pickle.dumps(norm) if norm is not None else None,
+            network if isinstance(network, LayerNetwork) else None,
+            Normalizer.of(norm),
+        )
 
     @classmethod
-    def read(cls, folder: Path) -> Snapshot:
+    def read(cls, folder: Path, algorithm: str) -> Snapshot:
+        """The snapshot this run checkpointed into folder (its own files: SB3's and pickle's loaders)."""
         norm = folder / NORMALIZER
-        return cls((folder / MODEL).read_bytes(), norm.read_bytes() if norm.exists() else None)
+        model = (folder / MODEL).read_bytes()
+        normalizer = norm.read_bytes() if norm.exists() else None
+        with _generators_kept():
+            network = network_of(algorithm_class(algorithm).load(io.BytesIO(model), device="cpu"))
+        stats = Normalizer.of(pickle.loads(normalizer)) if normalizer is not None else None
+        return cls(model, normalizer, network if isinstance(network, LayerNetwork) else None, stats)
 
     def write(self, folder: Path) -> None:
+        """The checkpoint's files: the SB3 zip and the VecNormalize pickle."""
         folder.mkdir(parents=True, exist_ok=True)
         atomic_write(folder / MODEL, lambda p: p.write_bytes(self.model))
         if self.normalizer is not None:
             atomic_write(folder / NORMALIZER, lambda p: p.write_bytes(self.normalizer))
+
+    def write_model(self, folder: Path) -> dict[str, Any]:
+        """The model folder's policy (model_folder.write_policy: the safe format), or, for a policy it
+        cannot hold, the SB3 zip (then only convert-model --trust-pickle can read it); returns the
+        manifest's fields for it."""
+        if self.network is None:
+            atomic_write(folder / MODEL, lambda p: p.write_bytes(self.model))
+            return {"model": MODEL, "sha256": {MODEL: sha256_bytes(self.model)}}
+        return write_policy(folder, self.network, self.stats)
 
 
 @dataclass
@@ -145,18 +170,19 @@ def evaluate_snapshot(
 ) -> dict[str, list[dict[str, float]]]:
     """Episode rows of a saved model on each group of episodes (scenario -> its validation episodes)
     through the leaderboard's loop (episode_metrics), deterministic, its observation statistics frozen
-    (SB3Policy, of the training scenario's plant: a regulation scenario gets its preview filled): in the
+    (LearnedPolicy, of the training scenario's plant: a regulation scenario gets its preview filled): in the
     validation worker or in the training process, the same numbers (picklable for the worker). The global
     random generators are left as they were (SB3's load reseeds them), so validation in the training
     process does not change the training."""
 
     with _generators_kept():
-        model = algorithm_class(cfg.algorithm).load(io.BytesIO(snap.model), device="cpu")
-        norm = pickle.loads(snap.normalizer) if snap.normalizer is not None else None
+        network = snap.network
+        if network is None:  # a policy the safe format cannot hold: this run's own zip, through SB3
+            network = algorithm_class(cfg.algorithm).load(io.BytesIO(snap.model), device="cpu")
         base = base_controller(cfg.base) if cfg.base is not None else None
         plants = (load_scenario(cfg.scenario).spec.name,)
-        policy = SB3Policy(
-            model, plants, name, inputs=cfg.inputs, base=base, alpha=cfg.alpha, normalizer=norm
+        policy = LearnedPolicy(
+            network, plants, name, inputs=cfg.inputs, base=base, alpha=cfg.alpha, normalizer=snap.stats
         )
         return {sc: episode_metrics(policy, episodes, _EVAL_ENVS) for sc, episodes in groups.items()}
 
