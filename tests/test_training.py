@@ -873,3 +873,19 @@ def test_a_run_stopped_at_any_write_of_a_checkpoint_resumes_from_one_complete_se
         best = min(got, key=lambda r: float(r["main"]) if float(r["admissible"]) else math.inf)
         assert m.selected_step == int(best["step"]), (k, targets[k])
         assert not list(run.glob(".*.tmp*")) and len(list((run / "checkpoint").iterdir())) == 2
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [("gamma", math.nan), ("gamma", 1.5), ("tau", 1e9), ("batch_size", 0), ("buffer_size", 2.5)],
+)
+def test_a_hyper_parameter_out_of_its_range_is_refused_when_the_config_is_read(tmp_path, key, value):
+    """A discount of NaN or above 1, a soft-update rate of 1e9, an empty batch: values that diverge or
+    fail inside torch are refused at config time, naming the field and the range."""
+    path = write_config(tmp_path, "SAC")
+    raw = yaml.safe_load(path.read_text())
+    raw["defaults"]["hyperparams"][key] = value
+    path.write_text(yaml.safe_dump(raw))
+    with pytest.raises(ConfigError, match=r"expected a (whole )?number in \[") as e:
+        load_config(path)
+    assert e.value.field.endswith(f"hyperparams.{key}")

@@ -310,6 +310,30 @@ def sb3_schedule(update_to_data: float, n_envs: int) -> tuple[int, int]:
     return (1, whole) if g >= 1 else (whole, 1)
 
 
+# The numeric hyper-parameters with a meaningful range (SB3's documentation): a value outside it, or NaN,
+# diverges or fails inside torch, so it is refused when the config is read. (low, high, whole number)
+HYPER_RANGES: dict[str, tuple[float, float, bool]] = {
+    "gamma": (0.0, 1.0, False),  # discount (1: undiscounted)
+    "tau": (0.0, 1.0, False),  # soft target update
+    "gae_lambda": (0.0, 1.0, False),
+    "clip_range": (0.0, 1.0, False),
+    "ent_coef": (0.0, 10.0, False),  # a number here ("auto", "auto_<init>" are strings)
+    "vf_coef": (0.0, 10.0, False),
+    "max_grad_norm": (1e-6, 1e6, False),
+    "target_entropy": (-1e3, 1e3, False),
+    "action_noise_std": (0.0, 10.0, False),
+    "buffer_size": (1, 1e8, True),
+    "batch_size": (1, 1e6, True),
+    "learning_starts": (0, 1e9, True),
+    "n_steps": (1, 1e7, True),
+    "n_epochs": (1, 1e4, True),
+    "train_freq": (1, 1e6, True),
+    "policy_delay": (1, 1e4, True),
+    "n_quantiles": (1, 1e4, True),
+    "top_quantiles_to_drop_per_net": (0, 1e4, True),
+}
+
+
 def _check_hyperparams(algo: str, hyper: dict[str, Any], node: Node) -> None:
     """Every hyper-parameter is a keyword of the algorithm's constructor (or one of ours, below)."""
     ours = {"action_noise_std"}
@@ -324,6 +348,12 @@ def _check_hyperparams(algo: str, hyper: dict[str, Any], node: Node) -> None:
     act = pk.get("activation_fn")
     if act is not None and act not in ACTIVATIONS:
         raise node.error("policy_kwargs.activation_fn", f"expected one of {list(ACTIVATIONS)}, got {act!r}")
+    for key, (low, high, whole) in HYPER_RANGES.items():
+        if key in hyper and isinstance(hyper[key], int | float):  # "auto" and schedules are SB3's to read
+            x = hyper[key]
+            if isinstance(x, bool) or not (low <= x <= high) or (whole and x != int(x)):
+                kind = "a whole number" if whole else "a number"
+                raise node.error(key, f"expected {kind} in [{low:g}, {high:g}], got {x!r}")
     if "learning_rate" in hyper:
         try:
             learning_rate(hyper["learning_rate"])
