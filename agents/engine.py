@@ -434,10 +434,11 @@ class EpisodesFile:
 
     def append(self, results: list[EpisodeResult]) -> None:
         """One write and an fsync for a finished chunk's results."""
-        data = _csv_text(results).encode()
+        data = memoryview(_csv_text(results).encode())
         fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
         try:
-            os.write(fd, data)
+            while data:  # os.write may write less than asked (a full disk raises ENOSPC on the next call)
+                data = data[os.write(fd, data) :]
             os.fsync(fd)
         finally:
             os.close(fd)

@@ -93,6 +93,12 @@ def main(argv: list[str] | None = None) -> int:
     except (RunMismatch, ValueError) as e:  # other options into --out; unknown controllers or bad models
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except OSError as e:  # a full or read-only disk, a dangling --out: what and where, the rows kept
+        print(
+            f"error: {e.strerror or e}: {e.filename or args.out} (finished rows stay in {args.out})",
+            file=sys.stderr,
+        )
+        return 1
     if code:
         return code
     print((args.out / "leaderboard.md").read_text().split("\n![")[0])

@@ -154,3 +154,14 @@ def test_check_draws_script_reports_zero_rejections():
     rows = [ln.split() for ln in proc.stdout.splitlines()[1:]]
     assert {r[1] for r in rows} >= {"kang_robot", "m220", "flexible_servo", "kang_regulation"}
     assert all(r[2:4] == ["300", "0"] for r in rows)
+
+
+def test_a_dangling_out_link_is_one_line_naming_the_path(tmp_path, capsys):
+    """--out a symbolic link to nowhere: the leaderboard stops with one line naming the path (rc 1), no
+    traceback."""
+    out = tmp_path / "out"
+    out.symlink_to(tmp_path / "missing" / "deeper")
+    args = ["--scenarios", "kang_regulation", "--seeds", "5000", "--workers", "1", "--controllers", "PD"]
+    assert load_script("leaderboard").main([*args, "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ") and str(out) in err[0], err
