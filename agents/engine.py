@@ -355,6 +355,68 @@ def _csv_text(results: Iterable[EpisodeResult], header: bool = False) -> str:
     return buf.getvalue()
 
 
+def read_rows(path: Path) -> tuple[list[tuple[int, EpisodeResult]], list[tuple[int, str]]]:
+    """episodes.csv's rows as (line, result), and the (line, why) of those that are not a result (a short
+    or long row, a value that does not parse); a last line without its newline is a torn write and not
+    read. Reads only."""
+    if not path.exists():
+        return [], []
+    text = path.read_bytes().decode("utf-8", errors="replace")
+    if not text.endswith("\n"):
+        text = text[: text.rfind("\n") + 1]
+    reader = csv.DictReader(io.StringIO(text))
+    rows, refused = [], []
+    for r in reader:
+        if None in r or len(r) != len(FIELDS) or None in r.values():
+            refused.append((reader.line_num, f"{len(r)} fields where the header has {len(FIELDS)}"))
+            continue
+        try:
+            rows.append((reader.line_num, parse_row(r)))
+        except (ValueError, KeyError) as e:
+            refused.append((reader.line_num, str(e).split("\n")[0]))
+    return rows, refused
+
+
+def reusable(
+    rows: list[tuple[int, EpisodeResult]], jobs: list[Job], prov: dict[str, str]
+) -> tuple[list[EpisodeResult], list[tuple[int, str]]]:
+    """The rows a run can reuse, and the (line, why) of the others: a row must be a job of this run
+    (run.json's controllers and episodes), once, written by this code version (package version and
+    commit: one run's rows come from one code), with a finite return and main metric unless it
+    diverged."""
+    planned = {j.key() for j in jobs}
+    main = {j.scenario: load_scenario(j.scenario).main_metric for j in jobs}
+    kept, seen, dropped = [], set(), []
+    for line, r in rows:
+        why = None
+        if r.key() not in planned:
+            why = "not an episode of this run's controllers and episodes (run.json)"
+        elif r.key() in seen:
+            why = "a second row for an episode already read"
+        elif r.provenance != prov:
+            why = f"written by another code version ({r.provenance}; this is {prov})"
+        elif not r.diverged and not all(map(math.isfinite, (r.episode_return, r.metrics[main[r.scenario]]))):
+            why = f"a non-finite return or {main[r.scenario]} in an episode that did not diverge"
+        if why is None:
+            kept.append(r)
+            seen.add(r.key())
+        else:
+            dropped.append((line, why))
+    return kept, dropped
+
+
+def describe_dropped(path: Path, dropped: list[tuple[int, str]]) -> list[str]:
+    """One line per reason: the file, the lines (the first five), why."""
+    by_why: dict[str, list[int]] = {}
+    for line, why in sorted(dropped):
+        by_why.setdefault(why, []).append(line)
+    out = []
+    for why, lines in by_why.items():
+        shown = ", ".join(map(str, lines[:5])) + (f" and {len(lines) - 5} more" if len(lines) > 5 else "")
+        out.append(f"{path}: line {shown}: {why}")
+    return out
+
+
 class EpisodesFile:
     """DIR/episodes.csv and DIR/run.json (see the module docstring)."""
 
@@ -371,62 +433,15 @@ class EpisodesFile:
             if self.path.exists():
                 raise RunMismatch(f"{self.path} exists without {run}; use another --out or remove it")
             atomic_text(run, text + "\n")
-        self.rows, self.refused = self._read()
+        self.rows, self.refused = read_rows(self.path)
         self.results = [r for _, r in self.rows]
 
-    def _read(self) -> tuple[list[tuple[int, EpisodeResult]], list[tuple[int, str]]]:
-        """The rows on disk as (line, result), and the (line, why) of those that are not a result (a
-        short or long row, a value that does not parse); a last line without its newline is a torn
-        write and not read."""
-        if not self.path.exists():
-            return [], []
-        text = self.path.read_bytes().decode("utf-8", errors="replace")
-        if not text.endswith("\n"):
-            text = text[: text.rfind("\n") + 1]
-        reader = csv.DictReader(io.StringIO(text))
-        rows, refused = [], []
-        for r in reader:
-            if None in r or len(r) != len(FIELDS) or None in r.values():
-                refused.append((reader.line_num, f"{len(r)} fields where the header has {len(FIELDS)}"))
-                continue
-            try:
-                rows.append((reader.line_num, parse_row(r)))
-            except (ValueError, KeyError) as e:
-                refused.append((reader.line_num, str(e).split("\n")[0]))
-        return rows, refused
-
     def reconcile(self, jobs: list[Job], prov: dict[str, str]) -> None:
-        """Keep the rows this run can reuse: a job of this run (run.json's episodes and controllers),
-        once, written by this code version (package version and commit: one run's rows come from one
-        code), with a finite return and main metric unless it diverged. Every other row is named on
-        stderr (file, lines, why), dropped from the file and re-run; never counted."""
-        planned = {j.key(): j for j in jobs}
-        main = {j.scenario: load_scenario(j.scenario).main_metric for j in jobs}
-        kept, seen, dropped = [], set(), list(self.refused)
-        for line, r in self.rows:
-            why = None
-            if r.key() not in planned:
-                why = "not an episode of this run's controllers and episodes (run.json)"
-            elif r.key() in seen:
-                why = "a second row for an episode already read"
-            elif r.provenance != prov:
-                why = f"written by another code version ({r.provenance}; this is {prov})"
-            elif not r.diverged and not all(
-                map(math.isfinite, (r.episode_return, r.metrics[main[r.scenario]]))
-            ):
-                why = f"a non-finite return or {main[r.scenario]} in an episode that did not diverge"
-            if why is None:
-                kept.append(r)
-                seen.add(r.key())
-            else:
-                dropped.append((line, why))
-        by_why: dict[str, list[int]] = {}
-        for line, why in sorted(dropped):
-            by_why.setdefault(why, []).append(line)
-        for why, lines in by_why.items():
-            shown = ", ".join(map(str, lines[:5])) + (f" and {len(lines) - 5} more" if len(lines) > 5 else "")
-            print(f"{self.path}: line {shown}: {why}; re-run", file=sys.stderr)
-        self.results = kept
+        """Keep the rows this run can reuse (`reusable`); every other row, and every row that does not
+        parse, is named on stderr (file, lines, why), dropped from the file and re-run: never counted."""
+        self.results, dropped = reusable(self.rows, jobs, prov)
+        for line in describe_dropped(self.path, [*self.refused, *dropped]):
+            print(f"{line}; re-run", file=sys.stderr)
         atomic_text(self.path, _csv_text(self.results, header=True))  # without a torn tail or dropped rows
 
     def done(self) -> set[tuple[str, str, int, bool, str]]:
@@ -470,6 +485,32 @@ def evaluate_to(
     done = store.done()
     run_jobs([j for j in jobs if j.key() not in done], workers, store.append, progress, models, ray)
     return store.finish(jobs, scoring(episodes)), skipped
+
+
+def finished_run(
+    src: Path,
+) -> tuple[dict[str, Any], list[EpisodeResult], list[Job], list[tuple[str, str, str]]]:
+    """A finished run's options (run.json), its results in canonical order and scored, its jobs and
+    skipped pairs, read without writing anything into src (read-only media are fine): every planned job
+    must have exactly one reusable row, or this names what is missing (resume the run first)."""
+    run, path = src / "run.json", src / "episodes.csv"
+    if not run.is_file() or not path.is_file():
+        raise RunMismatch(f"{src} holds no finished run (run.json and episodes.csv)")
+    options = json.loads(run.read_text())
+    episodes = [Episode(**e) for e in options["episodes"]]
+    models = tuple(options["models"])
+    jobs, skipped = plan(options["controllers"], episodes, models)
+    rows, refused = read_rows(path)
+    results, dropped = reusable(rows, jobs, provenance())
+    missing = len(jobs) - len(results)
+    if refused or dropped or missing:
+        lines = describe_dropped(path, [*refused, *dropped])
+        raise RunMismatch(
+            f"{src} is not a finished run of this code: {missing} of {len(jobs)} episodes missing"
+            + (f" ({'; '.join(lines)})" if lines else "")
+            + "; resume it first (the same command with that --out)"
+        )
+    return options, canonical(results, jobs, scoring(episodes)), skipped
 
 
 def scoring(episodes: list[Episode]) -> dict[str, Scoring]:

@@ -26,7 +26,7 @@ import numpy as np
 from frictiongym.envs.metrics import METRIC_NAMES
 from frictiongym.envs.records import atomic_text
 from frictiongym.envs.scenario import Scenario, load_scenario
-from frictiongym.envs.suites import Episode, load_suite
+from frictiongym.envs.suites import Episode, load_suite, suite_names
 
 from . import engine, registry, stats
 from . import leaderboard_report as report
@@ -309,6 +309,19 @@ def run(
     for name, scenario, reason in skipped:
         if progress:
             print(f"skipped {name} on {scenario}: {reason}")
+    return results, summarize_and_write(suite, episodes, results, models, out)
+
+
+def summarize_and_write(
+    suite: str,
+    episodes: list[Episode],
+    results: list[EpisodeResult],
+    models: tuple[str, ...],
+    out: Path | None,
+) -> dict[str, list[dict]]:
+    """The tables of a run's results and, with out, its leaderboard.md, leaderboard.csv, aggregate.csv and
+    plots written there."""
+    scenarios = {name: load_scenario(name) for name in dict.fromkeys(e.scenario for e in episodes)}
     table = summarize(results, scenarios)
     if out is not None:
         randomize = {e.scenario: e.randomize for e in episodes}
@@ -322,5 +335,15 @@ def run(
             {sc: penalty(results, s) for sc, s in scenarios.items()},
             responses(results, scenarios, randomize, models),
         )
+        out.mkdir(parents=True, exist_ok=True)
         write(board, out)
-    return results, table
+    return table
+
+
+def report_from(src: Path, out: Path) -> dict[str, list[dict]]:
+    """The report of the finished run in src (engine.finished_run: read only, every episode checked)
+    written to out, e.g. from read-only media; the tables."""
+    options, results, _ = engine.finished_run(src)
+    episodes = [Episode(**e) for e in options["episodes"]]
+    suite = next((name for name in suite_names() if load_suite(name) == episodes), "inline")
+    return summarize_and_write(suite, episodes, results, tuple(options["models"]), out)

@@ -21,6 +21,8 @@ import numpy as np
 
 from .config import ConfigError, configs_dir
 
+SAMPLING_PERIOD_S = (1e-6, 0.5)  # a drive's log: from 1 MHz to 2 Hz sampling (s)
+
 
 @dataclass(frozen=True)
 class Recording:
@@ -45,12 +47,23 @@ class Recording:
         return self.scalars[name]
 
     def time(self, name: str) -> np.ndarray:
-        """The signal called name, checked as a sample time: strictly increasing (s)."""
+        """The signal called name, checked as a sample time: strictly increasing, and its median sampling
+        period within SAMPLING_PERIOD_S (a drive's log; a time in milliseconds under a name in seconds
+        would make every identified rate 1000 times off)."""
         t = self.signal(name)
         bad = np.flatnonzero(np.diff(t) <= 0)
         if bad.size:
             raise ConfigError(
                 name, f"time must increase strictly; it does not at sample {bad[0] + 1}", self.source
+            )
+        period = float(np.median(np.diff(t)))
+        low, high = SAMPLING_PERIOD_S
+        if not low <= period <= high:
+            raise ConfigError(
+                name,
+                f"median sampling period {period:.6g} s is outside [{low:g}, {high:g}] s for a drive's log: "
+                "is the time in another unit (ms: divide by 1000)?",
+                self.source,
             )
         return t
 

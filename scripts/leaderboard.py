@@ -3,6 +3,7 @@
     python scripts/leaderboard.py [--suite default | --scenarios A B --seeds 5000-5049 [--randomize]]
                                   [--controllers PD PID ...] [--models DIR ...] [--workers N]
                                   [--out out/leaderboard]
+    python scripts/leaderboard.py --report-from DIR --out OTHER    (a finished run's report, DIR only read)
 
 Episodes run as jobs on N worker processes (default: every core) and land in OUT/episodes.csv as they
 finish; rerunning with the same options and --out resumes, and other options into the same --out are
@@ -63,9 +64,26 @@ def main(argv: list[str] | None = None) -> int:
         "(agents/models/headline and agents/models/generalist); "
         "--models alone: none (classical and plug-in controllers only, no rl extra needed)",
     )
+    src.add_argument(
+        "--report-from",
+        type=Path,
+        metavar="DIR",
+        help="write the report of the finished run in DIR to --out, reading DIR only (e.g. read-only media)",
+    )
     add_backend_arguments(ap)
     ap.add_argument("--out", type=Path, default=Path("out/leaderboard"))
     args = ap.parse_args(argv)
+    if args.report_from is not None:
+        try:
+            leaderboard.report_from(args.report_from, args.out)
+        except (RunMismatch, ValueError) as e:
+            print(f"error: {e}", file=sys.stderr)
+            return 2
+        except OSError as e:
+            print(f"error: {e.strerror or e}: {e.filename or args.out}", file=sys.stderr)
+            return 1
+        print(f"wrote {args.out / 'leaderboard.md'}, leaderboard.csv and plots from {args.report_from}")
+        return 0
     ray = backend_of(args, ap)
     if args.scenarios and not args.seeds:
         ap.error("--scenarios needs --seeds")

@@ -142,6 +142,8 @@ def test_csv_round_trip_identify_and_load_into_an_env(tmp_path):
         ("time_s,command_V,position_rad\n0,0,0\n0,1,1\n", "time_s"),
         ("time_s,command_V,position_rad\n0,0,0\n1,x,1\n", "command_V"),
         ("time_s,command_V\n0,0\n1,1\n", "header"),
+        ("time_s,command_V,position_rad\n0,0,0\n0.001,1,1,5\n", "log"),  # a row with an extra value
+        ("time_s,command_V,position_rad\n" + "".join(f"{i},0,0\n" for i in range(10)), "time_s"),  # ms
     ],
 )
 def test_malformed_logs_are_errors_naming_the_column(tmp_path, text, field):
@@ -150,6 +152,35 @@ def test_malformed_logs_are_errors_naming_the_column(tmp_path, text, field):
     with pytest.raises(ConfigError, match=field) as e:
         read_log(path)
     assert str(path) in str(e.value)
+
+
+def test_a_step_log_too_short_to_fit_is_refused():
+    """Two samples cannot give k and a with an interval (they gave k = 0 and an infinite interval)."""
+    with pytest.raises(ConfigError, match="a step fit needs at least 20"):
+        fit_step(np.array([0.0, 0.01]), np.array([0.0, 1e-4]), 1.0)
+
+
+def test_a_time_in_milliseconds_is_refused_naming_the_unit(tmp_path):
+    """A 1 kHz log whose time column holds milliseconds under time_s: every rate would be 1000 times off."""
+    path = tmp_path / "ms.csv"
+    path.write_text("time_s,command_V,position_rad\n" + "".join(f"{i},0,{i * 1e-3}\n" for i in range(50)))
+    with pytest.raises(ConfigError, match=r"median sampling period 1 s .* \(ms: divide by 1000\)") as e:
+        read_log(path)
+    assert e.value.field == "time_s" and str(path) in str(e.value)
+
+
+def test_a_non_finite_controller_gain_in_a_drive_log_is_refused(tmp_path):
+    """A NaN kp (as a .mat can hold) is refused when the log is read: it never reaches a draft preset."""
+    from frictiongym.agents.lab.drive_log import read_drive_log
+
+    t = np.arange(300) * 1e-3
+    rows = "".join(f"{x},{np.sin(x)},{np.sin(x)},0.0\n" for x in t.tolist())
+    head = "# drive_gain_n_per_v = 35.15\n# kp_per_s = nan\n# kv_v_per_unit_s = 10.0\n"
+    path = tmp_path / "drive.csv"
+    path.write_text(head + "time_s,position_m,reference_m,command_V\n" + rows)
+    with pytest.raises(ConfigError, match="nan must be positive and finite") as e:
+        read_drive_log(path)
+    assert e.value.field == "kp"
 
 
 def test_too_few_points_per_direction_is_an_error(tmp_path):

@@ -15,12 +15,13 @@ import pytest
 import yaml
 from conftest import load_script, write_config
 
-from frictiongym.agents import registry
+from frictiongym.agents import leaderboard, registry
 from frictiongym.agents.learned import LearnedPolicy
 from frictiongym.agents.manifest import MANIFEST, Manifest
 from frictiongym.agents.model_convert import convert_folder
 from frictiongym.agents.model_folder import POLICY, UntrustedModel, read_policy
 from frictiongym.envs.config import ConfigError
+from frictiongym.envs.suites import Episode
 
 COMMITTED = Path(__file__).parents[1] / "agents" / "models" / "headline" / "ResSAC-kang_regulation-s0"
 
@@ -72,11 +73,31 @@ def refused_everywhere(folder: Path, marker: Path, field: str, capsys) -> None:
     for script, args in (
         ("leaderboard", ["--scenarios", "kang_regulation", "--seeds", "5000", "--workers", "1"]),
         ("windows", ["--scenario", "kang_regulation", "--seeds", "5000", "--window-s", "1"]),
+        ("sim2real", ["--scenario", "kang_regulation", "--workers", "1"]),
     ):
         code = load_script(script).main([*args, "--models", str(folder), "--out", str(folder.parent / "out")])
         err = capsys.readouterr().err.strip().splitlines()
         assert code == 2 and len(err) == 1 and str(folder / MANIFEST) in err[0], (script, err)
+    # on Ray the driver reads every folder before any task is sent (a backend that is never reached)
+    with pytest.raises(ConfigError):
+        leaderboard.run(
+            "inline",
+            None,
+            None,
+            False,
+            1,
+            [Episode("kang_regulation", 5000, True)],
+            (str(folder),),
+            ray=NotReached(),
+        )
     assert not marker.exists()
+
+
+class NotReached:
+    """A backend whose use fails the test."""
+
+    def __getattr__(self, name):
+        raise AssertionError(f"the backend was used ({name}) before the model folders were checked")
 
 
 def test_a_committed_folder_loads_without_pickle_or_torch_and_keeps_its_hash(tmp_path):

@@ -165,3 +165,58 @@ def test_a_dangling_out_link_is_one_line_naming_the_path(tmp_path, capsys):
     assert load_script("leaderboard").main([*args, "--out", str(out)]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error: ") and str(out) in err[0], err
+
+
+def test_a_finished_run_is_reported_from_read_only_results(tmp_path, capsys):
+    """--report-from DIR writes a finished run's report elsewhere and writes nothing into DIR (here made
+    read-only); an unfinished run is refused, naming what is missing."""
+    import stat
+
+    board = load_script("leaderboard").main
+    args = ["--scenarios", "kang_regulation", "--seeds", "5000", "--workers", "1", "--controllers", "PD"]
+    run = tmp_path / "run"
+    assert board([*args, "--models", "--out", str(run)]) == 0
+    before = {p: p.read_bytes() for p in run.iterdir() if p.is_file()}
+    for p in [run, *run.iterdir()]:
+        p.chmod(p.stat().st_mode & ~(stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH))
+    try:  # (root ignores the mode bits: the folder's bytes are compared below all the same)
+        assert board(["--report-from", str(run), "--out", str(tmp_path / "report")]) == 0
+    finally:
+        for p in [run, *run.iterdir()]:
+            p.chmod(p.stat().st_mode | stat.S_IWUSR)
+    assert {p: p.read_bytes() for p in run.iterdir() if p.is_file()} == before
+    assert (tmp_path / "report" / "leaderboard.md").read_text() == (run / "leaderboard.md").read_text()
+    lines = (run / "episodes.csv").read_text().splitlines(keepends=True)
+    (run / "episodes.csv").write_text("".join(lines[:-1]))
+    capsys.readouterr()
+    assert board(["--report-from", str(run), "--out", str(tmp_path / "again")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "1 of" in err[0] and "episodes missing" in err[0] and "resume it first" in err[0]
+
+
+def test_a_full_disk_ends_in_one_line_and_keeps_whole_rows(tmp_path, capsys, monkeypatch):
+    """ENOSPC while episode rows are appended: one line naming the error and the folder (rc 1), and
+    episodes.csv holds whole rows only (a rerun resumes from them)."""
+    import errno
+
+    from frictiongym.agents import engine
+
+    real, calls = engine.os.write, []
+
+    def write(fd, data):  # the second chunk finds the disk full after writing half of itself
+        calls.append(len(data))
+        if len(calls) == 2:
+            real(fd, bytes(data[: len(data) // 2]))
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(fd, data)
+
+    monkeypatch.setattr(engine.os, "write", write)
+    out = tmp_path / "out"
+    args = ["--scenarios", "kang_regulation", "--seeds", "5000-5001", "--workers", "1", "--controllers", "PD"]
+    assert load_script("leaderboard").main([*args, "--models", "--out", str(out)]) == 1
+    err = [line for line in capsys.readouterr().err.replace("\r", "\n").splitlines() if "error" in line]
+    assert len(err) == 1 and "No space left on device" in err[0] and str(out) in err[0], err  # the bar aside
+    monkeypatch.setattr(engine.os, "write", real)
+    assert load_script("leaderboard").main([*args, "--models", "--out", str(out)]) == 0
+    lines = (out / "episodes.csv").read_text().splitlines()
+    assert len(lines) == 1 + len({tuple(x.split(",")[:3]) for x in lines[1:]})  # no torn or repeated row

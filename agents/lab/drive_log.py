@@ -11,6 +11,7 @@ lab controller's kp_per_s and kv_v_per_unit_s (eq. 6 of the EMPS description).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -159,6 +160,9 @@ def _checked(log: DriveLog) -> DriveLog:
         )
     if not 0.0 < log.drive_gain < 1e6:
         raise ConfigError("drive_gain", f"{log.drive_gain} must be positive and finite", log.source)
+    for name, gain in (("kp", log.kp), ("kv", log.kv)):  # the lab controller's gains, if logged
+        if gain is not None and not (math.isfinite(gain) and gain > 0):
+            raise ConfigError(name, f"{gain} must be positive and finite", log.source)
     return log
 
 

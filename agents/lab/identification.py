@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 from scipy import optimize, stats
 
+from frictiongym.envs import recorded
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.plants.identified import drive_friction
 from frictiongym.envs.plants.spec import PlantSpec
@@ -77,52 +78,29 @@ class Log:
 
 
 def read_log(path: str | Path) -> Log:
-    """A CSV log: '#' lines are provenance; header columns time_s, command_V or command_Nm, and
-    position_rad|position_deg and/or speed_rad_s|speed_deg_s, optionally segment and speed_reference_rad_s
-    (a hold's set-point). Errors name the column and the row (missing columns, non-numbers, NaN, time not
-    increasing)."""
-    text = Path(path).read_text()
-    prov = [line[1:].strip() for line in text.splitlines() if line.startswith("#")]
-    rows = list(csv.reader(line for line in text.splitlines() if line.strip() and not line.startswith("#")))
-    if not rows:
-        raise ConfigError("log", "empty file", str(path))
-    header, data = [h.strip() for h in rows[0]], rows[1:]
-    src = str(path)
-
-    def column(name: str) -> np.ndarray:
-        i = header.index(name)
-        out = np.empty(len(data))
-        for r, row in enumerate(data):
-            try:
-                out[r] = float(row[i])
-            except (ValueError, IndexError):
-                raise ConfigError(
-                    name, f"row {r + 2}: not a number: {row[i] if i < len(row) else ''!r}", src
-                ) from None
-            if not math.isfinite(out[r]):
-                raise ConfigError(name, f"row {r + 2}: {out[r]} is not finite", src)
-        return out
-
+    """A CSV log, read by the one loader of measured logs (envs/recorded.py: '#' lines are provenance,
+    every row as long as the header, every value a finite number): header columns time_s, command_V
+    or command_Nm, and position_rad|position_deg and/or speed_rad_s|speed_deg_s, optionally segment and
+    speed_reference_rad_s (a hold's set-point). Errors name the file, the column and the row (missing
+    columns, non-numbers, NaN, time not increasing or not in seconds)."""
+    rec = recorded.load(path)
+    header, src = list(rec.signals), rec.source
     need = "time_s, command_V or command_Nm, and position_rad|position_deg or speed_rad_s|speed_deg_s"
     commands = [c for c in header if c in ("command_V", "command_Nm")]
-    if "time_s" not in header or len(commands) != 1:
-        raise ConfigError("header", f"missing columns: need {need}; got {header}", src)
     pos = [c for c in header if c.startswith("position_") and c[9:] in POSITION_UNITS]
     spd = [c for c in header if c.startswith("speed_") and c[6:] in SPEED_UNITS]
-    if not pos and not spd:
+    if "time_s" not in header or len(commands) != 1 or not (pos or spd):
         raise ConfigError("header", f"missing columns: need {need}; got {header}", src)
-    if len(data) < 2:
-        raise ConfigError("log", "fewer than 2 data rows", src)
     try:
         return Log(
-            t=column("time_s"),
-            u=column(commands[0]),
+            t=rec.time("time_s"),
+            u=rec.signal(commands[0]),
             command_unit=commands[0][8:],
-            position=column(pos[0]) * POSITION_UNITS[pos[0][9:]] if pos else None,
-            speed=column(spd[0]) * SPEED_UNITS[spd[0][6:]] if spd else None,
-            segment=column("segment").astype(int) if "segment" in header else None,
-            provenance=prov,
-            reference=column("speed_reference_rad_s") if "speed_reference_rad_s" in header else None,
+            position=rec.signal(pos[0]) * POSITION_UNITS[pos[0][9:]] if pos else None,
+            speed=rec.signal(spd[0]) * SPEED_UNITS[spd[0][6:]] if spd else None,
+            segment=rec.signal("segment").astype(int) if "segment" in header else None,
+            provenance=[*rec.provenance, *(f"{k} = {v!r}" for k, v in rec.scalars.items())],
+            reference=rec.signal("speed_reference_rad_s") if "speed_reference_rad_s" in header else None,
         )
     except ConfigError as e:
         raise ConfigError(e.field, e.message, src) from None
@@ -214,9 +192,16 @@ def step_through_points(t: tuple[float, float], y: tuple[float, float], v: float
     return {"k": float(res.x[0]), "a": float(res.x[1])}
 
 
+MIN_STEP_SAMPLES = 20  # a step response to fit k and a (two parameters) with an interval
+
+
 def fit_step(t: np.ndarray, theta: np.ndarray, v: float) -> dict[str, Estimate]:
-    """Least-squares fit of k, a of k/(s(s+a)) to a whole step response θ(t) from rest (t from the step)."""
+    """Least-squares fit of k, a of k/(s(s+a)) to a whole step response θ(t) from rest (t from the step).
+    A response of fewer than MIN_STEP_SAMPLES samples, or one that does not determine k and a (an
+    infinite or NaN interval), is refused."""
     t, theta = np.asarray(t, float), np.asarray(theta, float)
+    if len(t) < MIN_STEP_SAMPLES:
+        raise ConfigError("log", f"{len(t)} samples: a step fit needs at least {MIN_STEP_SAMPLES}")
     late = t > 0.5 * t[-1]
     start = two_point_step_id((t[late][0], t[-1]), (theta[late][0], theta[-1]), v)
     k0, a0 = (start["k"], start["a"]) if start["a"] > 0 and start["k"] > 0 else (theta[-1] / t[-1] ** 2, 1.0)
@@ -227,6 +212,11 @@ def fit_step(t: np.ndarray, theta: np.ndarray, v: float) -> dict[str, Estimate]:
         bounds=([1e-9, 1e-9], [np.inf, np.inf]),
     )
     est = _estimates(["k", "a"], res, len(t))
+    for name, e in est.items():
+        if not all(map(math.isfinite, (e.value, e.low, e.high))):
+            raise ConfigError(
+                "log", f"the step response does not determine {name} (interval {e.low}, {e.high})"
+            )
     return {
         "k": Estimate(est["k"].value * k0, est["k"].low * k0, est["k"].high * k0),
         "a": Estimate(est["a"].value * a0, est["a"].low * a0, est["a"].high * a0),

@@ -156,7 +156,21 @@ def draft_preset(r: Identification) -> tuple[dict[str, Any], list[str]]:
     else:
         prov.append("sensors.encoder.resolution_m: the EMPS's (the log's position is not on a grid)")
     prov.append("randomization: the EMPS's ranges; set them from your fits' spread (docs/emps.md)")
+    _all_finite(p, log.source)
     return p, prov
+
+
+def _all_finite(node: Any, source: str, path: str = "") -> None:
+    """Refuse a draft preset holding a NaN or an infinite number (a fit that failed), naming its key: a
+    preset is never written with one."""
+    if isinstance(node, dict):
+        for k, v in node.items():
+            _all_finite(v, source, f"{path}{k}.")
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            _all_finite(v, source, f"{path}{i}.")
+    elif isinstance(node, float) and not math.isfinite(node):
+        raise ConfigError(path.rstrip("."), f"the identified value is {node}: no preset written", source)
 
 
 def write_identification(r: Identification, out: Path) -> list[Path]:
