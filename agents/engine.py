@@ -146,6 +146,12 @@ def stop_workers() -> None:
         p.join(timeout=5)
 
 
+def disk_error(e: OSError, out: Path) -> str:
+    """One line for a file-system failure of a run writing into `out` (a full or read-only disk, a
+    dangling --out link): what, where, and that what was finished stays there."""
+    return f"error: {e.strerror or e}: {e.filename or out} (what was finished stays in {out})"
+
+
 def run_interruptibly(fn: Callable[[], int], resume: str) -> int:
     """fn()'s exit code, with Ctrl-C (SIGINT) and SIGTERM stopping it within moments: every row
     finished before the signal stays where fn wrote it, the message says how to resume (`resume`), and

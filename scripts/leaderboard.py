@@ -21,7 +21,13 @@ import time
 from pathlib import Path
 
 from frictiongym.agents import leaderboard
-from frictiongym.agents.engine import RunMismatch, add_backend_arguments, backend_of, run_interruptibly
+from frictiongym.agents.engine import (
+    RunMismatch,
+    add_backend_arguments,
+    backend_of,
+    disk_error,
+    run_interruptibly,
+)
 from frictiongym.agents.registry import BASES, LEADERBOARD_GROUPS, committed_models
 from frictiongym.envs.scenario import scenario_names
 from frictiongym.envs.suites import Episode, suite_names
@@ -80,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"error: {e}", file=sys.stderr)
             return 2
         except OSError as e:
-            print(f"error: {e.strerror or e}: {e.filename or args.out}", file=sys.stderr)
+            print(disk_error(e, args.out), file=sys.stderr)
             return 1
         print(f"wrote {args.out / 'leaderboard.md'}, leaderboard.csv and plots from {args.report_from}")
         return 0

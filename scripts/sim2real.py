@@ -25,7 +25,13 @@ import sys
 from pathlib import Path
 
 from frictiongym.agents import sim2real
-from frictiongym.agents.engine import RunMismatch, add_backend_arguments, backend_of, run_interruptibly
+from frictiongym.agents.engine import (
+    RunMismatch,
+    add_backend_arguments,
+    backend_of,
+    disk_error,
+    run_interruptibly,
+)
 from frictiongym.agents.registry import LEADERBOARD_GROUPS, committed_models
 from frictiongym.envs.scenario import scenario_names
 
@@ -87,6 +93,9 @@ def main(argv: list[str] | None = None) -> int:
     except (RunMismatch, ValueError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except OSError as e:
+        print(disk_error(e, args.out), file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

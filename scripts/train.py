@@ -23,7 +23,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from frictiongym.agents.engine import run_interruptibly
+from frictiongym.agents.engine import disk_error, run_interruptibly
 from frictiongym.agents.sweeps import METRIC, load_sweep, run_sweep
 from frictiongym.agents.training import (
     NothingSelected,
@@ -77,6 +77,9 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigError, FileExistsError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except OSError as e:
+        print(disk_error(e, args.out), file=sys.stderr)
+        return 1
     if code:
         return code
     for m in manifests:

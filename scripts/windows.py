@@ -21,6 +21,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from frictiongym.agents import registry
+from frictiongym.agents.engine import disk_error
 from frictiongym.agents.evaluate import EnvCache
 from frictiongym.agents.windows import FIELDS, controller_windows, plot_windows
 from frictiongym.envs.records import atomic_text, csv_text
@@ -48,6 +49,9 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as e:  # a bad controller name or model folder: one line naming it
         print(f"error: {e}", file=sys.stderr)
         return 2
+    except OSError as e:
+        print(disk_error(e, args.out), file=sys.stderr)
+        return 1
 
 
 def run(args: argparse.Namespace, scenario: Scenario) -> int:
