@@ -37,12 +37,6 @@ from .classical import (
     ResidualBaseSettings,
     Southward,
     SpeedScheduled,
-    SpeedScheduledBumpless,
-    SpeedScheduledFF,
-    SpeedScheduledFFFloorGated,
-    SpeedScheduledFFGated,
-    SpeedScheduledFFRestGated,
-    SpeedScheduledFiltered,
     StateFeedback,
     TaskScheduled,
 )
@@ -76,24 +70,20 @@ def builtin(name: str) -> Controller:
     return BUILTIN[name]()
 
 
-_sf_base = partial(StateFeedback, "relay", w_cl=ResidualBaseSettings.defaults().w_cl, observe_residual=True)
-
-# Residual bases that are not baselines (no seed describes them): made by name like any controller (a
-# leaderboard runs one when asked for it, as an entry), never in a default run or a baseline.
+# Residual bases that are not baselines (no seed describes them), those the committed models run over:
+# made by name like any controller (a leaderboard runs one when asked for it, as an entry), never in a
+# default run or a baseline. Their settings are controllers.yaml's (speed_scheduled, task_scheduled,
+# state_feedback_residual_base).
 BASES: dict[str, Callable[[], Controller]] = {
     "SpeedScheduled": partial(SpeedScheduled, builtin),
-    "SpeedScheduledBumpless": partial(SpeedScheduledBumpless, builtin),
-    "SpeedScheduledFiltered": partial(SpeedScheduledFiltered, builtin),
-    "SpeedScheduledFF": partial(SpeedScheduledFF, builtin),
-    "SpeedScheduledFFGated": partial(SpeedScheduledFFGated, builtin),
-    "SpeedScheduledFFRestGated": partial(SpeedScheduledFFRestGated, builtin),
-    "SpeedScheduledFFFloorGated": partial(SpeedScheduledFFFloorGated, builtin),
     "TaskScheduled": partial(TaskScheduled, builtin),
-    "SF+relay/residual-observed": partial(StateFeedback, "relay", observe_residual=True),
-    "SF+highgain/residual-observed": partial(StateFeedback, "highgain", observe_residual=True),
-    # Wallenborg's loop at controllers.yaml's state_feedback_residual_base ω_cl (9 rad/s, not the baseline's
-    # 12): on the flexible speed steps it rings less; the number is part of the name.
-    _sf_base().name: _sf_base,
+    # Wallenborg's SF+relay at state_feedback_residual_base's ω_cl, its observer fed the residual
+    "SF+relay/residual-base": lambda: StateFeedback(
+        "relay",
+        w_cl=ResidualBaseSettings.defaults().w_cl,
+        observe_residual=True,
+        name="SF+relay/residual-base",
+    ),
 }
 
 

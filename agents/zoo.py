@@ -164,8 +164,9 @@ def validate(
     of the scenario it trained on (the selection the project's own training uses; never the test suite);
     its files are pickles (zoo_policy): only with trust_pickle."""
 
-    entry = gym.spec(env_id).entry_point
-    scenario = zoo_env_kwargs(run).get("scenario") or registration.load_env_creator(entry).default_scenario
+    spec = gym.spec(env_id)  # a per-scenario id carries its scenario; a per-plant id its default
+    default = spec.kwargs.get("scenario") or registration.load_env_creator(spec.entry_point).default_scenario
+    scenario = zoo_env_kwargs(run).get("scenario") or default
     eps = validation_episodes(scenario)[:episodes]
     envs = EnvCache()
     baseline = best_classical(scenario, classical_on(eps, envs))

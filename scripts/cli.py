@@ -18,6 +18,7 @@ from pathlib import Path
 from frictiongym.envs.records import package_version
 
 COMMANDS = {  # subcommand -> module of frictiongym.scripts
+    "list": "list_envs",
     "leaderboard": "leaderboard",
     "train": "train",
     "sim2real": "sim2real",

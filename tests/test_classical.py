@@ -1,5 +1,6 @@
 """Classical baselines behave as their papers say on the simulated plants."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -220,14 +221,32 @@ def _fresh(controller, scenario: str):
     return controller
 
 
+def schedule(**options):
+    """SpeedScheduled on the M220 with its controllers.yaml schedule's options changed; plain: none of
+    them (no bumpless transfer, no filter, PID below speed_low on every task, no residual gate)."""
+    from frictiongym.agents.classical import SpeedScheduled, SpeedScheduledSettings
+    from frictiongym.agents.registry import builtin
+
+    default = SpeedScheduledSettings.defaults().schedules["m220"]
+    return SpeedScheduled(builtin, SpeedScheduledSettings({"m220": dataclasses.replace(default, **options)}))
+
+
+PLAIN = {
+    "bumpless": False,
+    "high_velocity_filter_s": None,
+    "low_tracking": None,
+    "residual_gate": "none",
+    "residual_floor": 0.0,
+}
+
+
 def test_speed_scheduled_is_its_low_loop_at_rest_and_its_high_loop_in_fast_motion():
     """u = (1 - w)·u_low + w·u_high: at w = 0 (a constant reference) PID's commands, at w = 1 (a ramp
     faster than speed_high, from its second sample) the LuGre observer's, bit for bit; in between the
     blend with w = (v - speed_low)/(speed_high - speed_low)."""
-    from frictiongym.agents.classical import LuGreObserver, SpeedScheduled
-    from frictiongym.agents.registry import builtin
+    from frictiongym.agents.classical import LuGreObserver
 
-    sched = _fresh(SpeedScheduled(builtin), "m220_reversal_tracking")
+    sched = _fresh(schedule(**PLAIN), "m220_reversal_tracking")
     s, h = sched.s, sched.h
     assert (s.low, s.high) == ("PID", "LuGreObserver") and s.speed_low < s.speed_high
     rng = np.random.default_rng(0)
@@ -237,7 +256,7 @@ def test_speed_scheduled_is_its_low_loop_at_rest_and_its_high_loop_in_fast_motio
         return [c.command(y, r) for y, r in zip(ys, refs, strict=True)]
 
     def run(refs):
-        mine = commands(_fresh(SpeedScheduled(builtin), "m220_reversal_tracking"), refs)
+        mine = commands(_fresh(schedule(**PLAIN), "m220_reversal_tracking"), refs)
         lo = commands(_fresh(PID(), "m220_reversal_tracking"), refs)
         hi = commands(_fresh(LuGreObserver(), "m220_reversal_tracking"), refs)
         return mine, lo, hi
@@ -256,10 +275,7 @@ def test_speed_scheduled_is_its_low_loop_at_rest_and_its_high_loop_in_fast_motio
 def test_speed_scheduled_holds_a_motions_weight_and_decays_it_over_hold_s():
     """After a motion at speed v0 stops, the envelope is v0·exp(-t/hold_s): the weight goes back to the
     low loop once it is below speed_low, at t = hold_s·ln(v0/speed_low)."""
-    from frictiongym.agents.classical import SpeedScheduled
-    from frictiongym.agents.registry import builtin
-
-    c = _fresh(SpeedScheduled(builtin), "m220_reversal_tracking")
+    c = _fresh(schedule(), "m220_reversal_tracking")
     s, h = c.s, c.h
     v0 = 2 * s.speed_high
     for k in range(10):
@@ -274,6 +290,8 @@ def test_speed_scheduled_holds_a_motions_weight_and_decays_it_over_hold_s():
 
 
 def test_speed_scheduled_runs_on_a_scheduled_position_loop_only_and_is_pid_at_set_points():
+    """The registry's SpeedScheduled (the committed M220 generalists' base, every option on) at a
+    set-point is PID's episode to the last bit (w = 0 throughout, PID below speed_low at set-points)."""
     from frictiongym.agents import registry
 
     c = registry.make("SpeedScheduled")
@@ -298,15 +316,12 @@ def test_a_pid_told_its_share_integrates_only_that_share():
 
 
 def test_the_bumpless_schedule_holds_the_low_loops_integral_while_the_high_loop_commands():
-    """At w = 1 (a ramp faster than speed_high) SpeedScheduledBumpless applies the observer's command, as
-    SpeedScheduled does, but its PID integrates nothing, so it hands back the integral it had before the
-    motion; SpeedScheduled's PID winds up over the same motion. At w = 0 both are PID, bit for bit."""
-    from frictiongym.agents.classical import SpeedScheduled, SpeedScheduledBumpless
-    from frictiongym.agents.registry import builtin
-
+    """At w = 1 (a ramp faster than speed_high) the bumpless schedule applies the observer's command, as
+    the plain one does, but its PID integrates nothing, so it hands back the integral it had before the
+    motion; the plain schedule's PID winds up over the same motion. At w = 0 both are PID, bit for bit."""
     ys = np.cumsum(np.random.default_rng(0).normal(0, 1e-3, 100))
     plain, bumpless = (
-        _fresh(cls(builtin), "m220_reversal_tracking") for cls in (SpeedScheduled, SpeedScheduledBumpless)
+        _fresh(schedule(**{**PLAIN, **extra}), "m220_reversal_tracking") for extra in ({}, {"bumpless": True})
     )
 
     def commands(c, refs):  # readings within a few mrad of the reference: no saturation
@@ -326,74 +341,62 @@ def test_the_bumpless_schedule_cuts_the_reversal_peak_on_a_validation_episode():
     """What the transfer is for (scheduled.py's docstring, 10 episodes: 0.0087 against 0.0157 rad): on
     the first validation episode of the 0.2 Hz reversals PID no longer hands back an integral wound up
     under the observer, so the peak error at the reversals is lower at no more effort."""
-    from frictiongym.agents import registry
-
     ep = Episode("m220_reversal_tracking", 500000, True)
     plain, bumpless = (
-        run_episode(registry.make(n), ep).metrics for n in ("SpeedScheduled", "SpeedScheduledBumpless")
+        run_episode(schedule(**{**PLAIN, **extra}), ep).metrics for extra in ({}, {"bumpless": True})
     )
     assert bumpless["reversal_peak_error"] < 0.75 * plain["reversal_peak_error"]
     assert bumpless["effort_rms"] <= plain["effort_rms"]
 
 
 def test_the_filtered_schedule_cuts_the_jittered_reversals_effort_on_a_validation_episode():
-    """What the velocity filter is for (controllers.yaml speed_scheduled_filtered): under the jittered
+    """What the velocity filter is for (controllers.yaml speed_scheduled.m220): under the jittered
     scenario's encoder noise the observer's velocity (an encoder difference) carries the noise into the
     command; filtered, the effort on the first validation episode falls by more than a quarter and the
     reversal peak error does not grow."""
-    from frictiongym.agents import registry
-
     ep = Episode("m220_reversal_tracking_hard", 500000, True)
+    bumpless = {**PLAIN, "bumpless": True}
     bumpless, filtered = (
-        run_episode(registry.make(n), ep).metrics
-        for n in ("SpeedScheduledBumpless", "SpeedScheduledFiltered")
+        run_episode(schedule(**{**bumpless, **extra}), ep).metrics
+        for extra in ({}, {"high_velocity_filter_s": 0.01})
     )
     assert filtered["effort_rms"] < 0.75 * bumpless["effort_rms"]
     assert filtered["reversal_peak_error"] <= bumpless["reversal_peak_error"]
 
 
 def test_the_filtered_schedule_filters_only_its_observer_and_names_bad_settings():
-    from frictiongym.agents.classical import (
-        ObserverFilterSettings,
-        SpeedScheduledFiltered,
-        SpeedScheduledSettings,
-    )
-    from frictiongym.agents.classical.scheduled import Schedule
+    from frictiongym.agents.classical import SpeedScheduledSettings
     from frictiongym.agents.registry import builtin
 
-    c = _fresh(SpeedScheduledFiltered(builtin), "m220_reversal_tracking")
-    tau = ObserverFilterSettings.defaults().velocity_filter_s["m220"]
+    c = _fresh(schedule(), "m220_reversal_tracking")
+    tau = SpeedScheduledSettings.defaults().schedules["m220"].high_velocity_filter_s
     assert c.high.observer.velocity_filter_s == tau > 0
     assert builtin("LuGreObserver").observer.velocity_filter_s == 0.0  # the baseline keeps none
-    sc = load_scenario("m220_regulation")
-    none = SpeedScheduledFiltered(builtin, filtering=ObserverFilterSettings({}))
-    assert "no velocity filter for plant 'm220'" in none.why_not(sc)
-    pid_high = SpeedScheduledSettings({"m220": Schedule("PID", "PID", 0.1, 0.4, 1.0)})
+    assert (
+        _fresh(
+            schedule(high_velocity_filter_s=None), "m220_reversal_tracking"
+        ).high.observer.velocity_filter_s
+        == 0
+    )
     with pytest.raises(ConfigError, match=r"speed_scheduled\.m220\.high: PID is not a LuGre observer"):
-        SpeedScheduledFiltered(builtin, pid_high).why_not(sc)
+        schedule(high="PID").why_not(load_scenario("m220_regulation"))
 
 
 def test_the_ff_schedule_runs_pid_ff_below_speed_low_on_tracking_and_pid_at_set_points():
-    """SpeedScheduledFF (controllers.yaml speed_scheduled_ff): on a tracking scenario its low loop is
-    PID+FF, so at rest (w = 0) its commands are PID+FF's; at a set-point it is SpeedScheduledFiltered bit
-    for bit (PID below speed_low). The feed-forward's Coulomb step at the 0.2 Hz reversals, where the
+    """low_tracking (controllers.yaml speed_scheduled.m220): on a tracking scenario the low loop is
+    PID+FF, so at rest (w = 0) its commands are PID+FF's; at a set-point it is the schedule without it
+    bit for bit (PID below speed_low). The feed-forward's Coulomb step at the 0.2 Hz reversals, where the
     low loop regains weight, lowers the filtered schedule's reversal peak (validation: 0.0055 against
-    0.0085 rad over 30 episodes). A plant without an entry is named."""
-    from frictiongym.agents.classical import (
-        PIDCoulombViscousFF,
-        SpeedScheduledFF,
-        SpeedScheduledFiltered,
-        TrackingLowSettings,
-    )
-    from frictiongym.agents.registry import builtin
+    0.0085 rad over 30 episodes). A loop that is none is named."""
+    from frictiongym.agents.classical import PIDCoulombViscousFF
 
-    c = _fresh(SpeedScheduledFF(builtin), "m220_reversal_tracking")
+    c = _fresh(schedule(), "m220_reversal_tracking")
     assert isinstance(c.low, PIDCoulombViscousFF) and c.high.observer.velocity_filter_s > 0
     ff = _fresh(PIDCoulombViscousFF(), "m220_reversal_tracking")
     ys = np.cumsum(np.random.default_rng(0).normal(0, 1e-3, 200))  # readings (rad), reference at rest
     assert [c.command(y, 0.3) for y in ys] == [ff.command(y, 0.3) for y in ys]
     ep = Episode("m220_regulation", 500000, True)
-    mine, filtered = SpeedScheduledFF(builtin), SpeedScheduledFiltered(builtin)
+    mine, filtered = schedule(), schedule(low_tracking=None)
     np.testing.assert_equal(run_episode(mine, ep).metrics, run_episode(filtered, ep).metrics)
     peaks = [
         [
@@ -403,25 +406,15 @@ def test_the_ff_schedule_runs_pid_ff_below_speed_low_on_tracking_and_pid_at_set_
         for c in (mine, filtered)
     ]
     assert np.mean(peaks[0]) < 0.8 * np.mean(peaks[1])
-    none = SpeedScheduledFF(builtin, tracking=TrackingLowSettings({}))
-    assert "no tracking loop for plant 'm220'" in none.why_not(load_scenario("m220_random"))
-    zero = SpeedScheduledFF(builtin, tracking=TrackingLowSettings({"m220": "Zero"}))
-    with pytest.raises(ConfigError, match=r"speed_scheduled_ff\.low_tracking\.m220: Zero is not a loop"):
-        zero.why_not(load_scenario("m220_random"))
+    with pytest.raises(ConfigError, match=r"speed_scheduled\.m220\.low_tracking: Zero is not a loop"):
+        schedule(low_tracking="Zero").why_not(load_scenario("m220_random"))
 
 
 def test_speed_scheduled_settings_are_checked_by_name():
-    from frictiongym.agents.classical import SpeedScheduled, SpeedScheduledSettings
-    from frictiongym.agents.classical.scheduled import Schedule
-    from frictiongym.agents.registry import builtin
-
-    bad = SpeedScheduledSettings({"m220": Schedule("PID", "Zero", 0.1, 0.4, 1.0)})
     with pytest.raises(ConfigError, match=r"speed_scheduled\.m220\.high: Zero is not a loop"):
-        SpeedScheduled(builtin, bad).why_not(load_scenario("m220_regulation"))
+        schedule(high="Zero", high_velocity_filter_s=None).why_not(load_scenario("m220_regulation"))
     with pytest.raises(ValueError, match="'PIDD' is not a built-in controller"):
-        SpeedScheduled(builtin, schedules={"m220": Schedule("PIDD", "PID", 0.1, 0.4, 1.0)}).why_not(
-            load_scenario("m220_regulation")
-        )
+        schedule(low="PIDD").why_not(load_scenario("m220_regulation"))
 
 
 def test_the_task_schedule_runs_its_tasks_loop_alone_bit_for_bit():

@@ -8,6 +8,7 @@ import copy
 import json
 import pickle
 import warnings
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -15,12 +16,13 @@ import pytest
 from gymnasium.utils.env_checker import data_equivalence
 
 import frictiongym.envs  # registers the ids
-from frictiongym.envs import ENV_IDS
+from frictiongym.envs import ENV_IDS, scenario_env_id
 from frictiongym.envs.config import ConfigError, configs_dir
-from frictiongym.envs.scenario import load_scenario
+from frictiongym.envs.scenario import load_scenario, scenario_names
 from frictiongym.envs.vector import ServoVectorEnv, make_sb3_vec_env
 
 KANG = "frictiongym/KangRobot-v0"
+ROOT = Path(__file__).resolve().parents[1]
 IDS = list(ENV_IDS)
 
 
@@ -71,36 +73,60 @@ def test_vector_entry_point_takes_make_vec_arguments_and_refuses_another_plant()
 
 
 @pytest.mark.parametrize("env_id", IDS)
-def test_spec_max_episode_steps_is_the_chosen_scenarios_length(env_id):
+def test_a_plant_id_ends_its_episode_where_its_chosen_scenario_does(env_id):
+    """A per-plant id has no max_episode_steps (its registered spec cannot know the call's scenario=):
+    no TimeLimit is added, and the env itself truncates at the chosen scenario's last period, single and
+    vector, with the episode's metrics; the registry is unchanged by the calls."""
     entry = frictiongym.envs._env_class(ENV_IDS[env_id][0])
     default = load_scenario(entry.default_scenario).episode_steps
-    assert gym.spec(env_id).max_episode_steps == default
-    assert gym.make(env_id).spec.max_episode_steps == default
     other = next(n for n in _plant_scenarios(entry.plant) if load_scenario(n).episode_steps != default)
     steps = load_scenario(other).episode_steps
+    assert gym.spec(env_id).max_episode_steps is None
     env = gym.make(env_id, scenario=other)
-    assert env.spec.max_episode_steps == steps
-    assert gym.make(env_id, scenario=other, episode_s=0.2).spec.max_episode_steps == round(
-        0.2 / load_scenario(other).control_period
-    )
-    assert gym.make_vec(env_id, num_envs=2, scenario=other).max_episode_steps == steps
-    assert gym.spec(env_id).max_episode_steps == default  # the registry is unchanged by the calls
-    # the TimeLimit gym.make adds ends the episode exactly where the scenario does
     env.reset(seed=0)
     for k in range(1, steps + 1):
         *_, term, trunc, info = env.step(np.zeros(1, np.float32))
         assert trunc == (k == steps) and not term
     assert "episode_metrics" in info
+    v = gym.make_vec(env_id, num_envs=2, scenario=other)
+    v.reset(seed=0)
+    for k in range(1, steps + 1):
+        *_, term, trunc, _ = v.step(np.zeros((2, 1), np.float32))
+        assert (trunc == (k == steps)).all() and not term.any()
+    assert gym.spec(env_id).max_episode_steps is None
+
+
+@pytest.mark.parametrize("scenario", scenario_names())
+def test_every_scenario_has_its_own_id_with_its_length(scenario):
+    """frictiongym/<Plant>-<Scenario>-v0 makes the scenario on its plant's env, and its spec's
+    max_episode_steps is the scenario's length (for gym.make's TimeLimit and gym.make_vec alike)."""
+    sc = load_scenario(scenario)
+    id_ = scenario_env_id(scenario)
+    assert frictiongym.envs.SCENARIO_IDS[id_] == scenario
+    env = gym.make(id_)
+    assert env.unwrapped.scenario.name == scenario and env.unwrapped.plant == sc.spec.name
+    assert gym.spec(id_).max_episode_steps == env.spec.max_episode_steps == sc.episode_steps
+    assert gym.make_vec(id_, num_envs=2).max_episode_steps == sc.episode_steps
+
+
+def test_the_ids_are_listed_by_the_command_and_in_the_docs():
+    """`frictiongym list --markdown` prints every registered id once, and docs/envs.md holds that table."""
+    from conftest import load_script
+
+    listing = load_script("list_envs")
+    table = listing.markdown()
+    ids = [line.split("|")[1].strip().strip("`") for line in table.splitlines()[2:]]
+    assert sorted(ids) == sorted([*ENV_IDS, *frictiongym.envs.SCENARIO_IDS])
+    assert table in (ROOT / "docs" / "envs.md").read_text()
 
 
 def _plant_scenarios(plant: str) -> list[str]:
-    from frictiongym.envs.scenario import scenario_names
-
     return [n for n in scenario_names() if load_scenario(n).spec.name == plant]
 
 
 def test_time_wrappers_agree_with_the_env():
-    env = gym.wrappers.TimeAwareObservation(gym.make(KANG))  # needs the spec's max_episode_steps
+    env = gym.wrappers.TimeAwareObservation(gym.make("frictiongym/KangRobot-Regulation-v0"))  # needs the
+    # spec's max_episode_steps: a per-scenario id
     obs, _ = env.reset(seed=1)
     assert obs[-1] == 0.0
     short = gym.make(KANG, max_episode_steps=3)
@@ -187,8 +213,8 @@ def test_path_scenario_serialises_in_the_spec():
     path = configs_dir() / "scenarios" / "kang_ramp.yaml"
     env = gym.make(KANG, scenario=path)
     spec = json.loads(env.spec.to_json())
-    assert spec["kwargs"]["scenario"] == str(path) and spec["max_episode_steps"] == 2500
-    assert gym.make(KANG, scenario=env.spec.kwargs["scenario"]).spec.max_episode_steps == 2500
+    assert spec["kwargs"]["scenario"] == str(path) and spec["max_episode_steps"] is None
+    assert gym.make(KANG, scenario=env.spec.kwargs["scenario"]).unwrapped.scenario.episode_steps == 2500
     assert gym.make_vec(KANG, num_envs=2, scenario=path).spec.to_json()
 
 

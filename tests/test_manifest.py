@@ -80,3 +80,53 @@ def test_a_bad_manifest_is_an_error_naming_the_file_and_key(tmp_path, text, fiel
     with pytest.raises(ConfigError) as e:
         Manifest.read(tmp_path)
     assert e.value.field == field and e.value.source == str(tmp_path / MANIFEST)
+
+
+# Fields RunConfig gained after some committed models were trained, with the value those runs had.
+LATER_FIELDS = {"residual_smoothness": 0.0, "reference": {}, "eval_scenarios": []}
+
+
+def test_every_committed_model_s_command_names_a_config_that_resolves_to_what_it_trained_with():
+    """The exact command in each committed manifest re-runs the same training: its --config (a file of
+    configs/agents/) resolves, for the manifest's scenario, to the config the manifest recorded, field
+    for field (fields added later carry the value those runs had; update_to_data 1 with one env is
+    SB3's train_freq 1 and gradient_steps 1)."""
+    import dataclasses
+    import shlex
+
+    from frictiongym.agents.training import load_config
+
+    for folder in sorted(p.parent for p in MODELS.glob("*/*/" + MANIFEST)):
+        m = Manifest.read(folder)
+        words = shlex.split(m.command)
+        assert words[:2] == ["python", "scripts/train.py"], folder
+        (cfg,) = load_config(words[words.index("--config") + 1], m.scenario)
+        now = {**cfg.as_dict(), "inputs": dataclasses.asdict(cfg.inputs)}
+        rec = {**LATER_FIELDS, **m.config, "inputs": {"differences": False, **m.config["inputs"]}}
+        hp = rec["hyperparams"]
+        if "update_to_data" not in rec and hp.get("train_freq") == hp.get("gradient_steps") == 1:
+            rec["hyperparams"] = {k: v for k, v in hp.items() if k not in ("train_freq", "gradient_steps")}
+            rec["update_to_data"] = 1.0
+        assert rec.pop("source") == now.pop("source").split("/configs/", 1)[-1].join(["configs/", ""])
+        assert now == rec, folder
+
+
+def test_no_committed_text_file_holds_a_machine_path():
+    """Commands and sources are relative to the repository: no committed text names /work, /tmp, /home,
+    /root or /Users (the machines runs were made on)."""
+    import re
+    import subprocess
+
+    root = Path(__file__).parents[1]
+    files = subprocess.run(["git", "ls-files"], cwd=root, capture_output=True, text=True, check=True).stdout
+    pattern = re.compile(r"(?<![\w.])/(work|tmp|home|root|Users)/")
+    bad = []
+    for name in files.split():
+        path = root / name
+        if path.suffix in (".yaml", ".yml", ".md", ".csv", ".txt", ".toml", ".cfg") and path.is_file():
+            bad += [
+                f"{name}:{i}"
+                for i, line in enumerate(path.read_text(errors="ignore").splitlines(), 1)
+                if pattern.search(line)
+            ]
+    assert not bad, bad

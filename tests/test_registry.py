@@ -2,6 +2,7 @@
 alone, as the loaded model would judge itself."""
 
 from frictiongym.agents import registry
+from frictiongym.agents.manifest import Manifest
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import load_suite
 
@@ -86,7 +87,12 @@ def test_a_residual_base_is_made_by_name_but_never_a_baseline_or_a_default_entry
 
     from frictiongym.agents.leaderboard import classical
 
-    assert {"SpeedScheduled", "SpeedScheduledBumpless", "SpeedScheduledFiltered"} <= set(registry.BASES)
+    assert set(registry.BASES) == {"SpeedScheduled", "TaskScheduled", "SF+relay/residual-base"}
+    used = {
+        Manifest.read(f).base_controller
+        for f in registry.committed_models("headline", "generalist", "sim2real")
+    }
+    assert set(registry.BASES) <= used  # every base is one a committed model runs over
     assert set(registry.available()) - set(registry.default_entries()) == set(registry.BASES)
     for name in registry.BASES:
         assert name not in registry.BUILTIN and name not in registry.default_entries()

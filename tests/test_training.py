@@ -4,6 +4,7 @@ the residual's zero start, asymmetric actor-critic, registry entries."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import importlib.util
 import itertools
 import json
@@ -22,7 +23,8 @@ from conftest import HYPER, SCENARIO, load_script, write_config
 
 from frictiongym.agents import registry
 from frictiongym.agents.base import EpisodeContext
-from frictiongym.agents.classical import MotionFloorSettings
+from frictiongym.agents.classical import SpeedScheduled, SpeedScheduledSettings
+from frictiongym.agents.classical.scheduled import GATES
 from frictiongym.agents.engine import plan
 from frictiongym.agents.evaluate import EnvCache, run_episode
 from frictiongym.agents.learned import LearnedPolicy, residual_action
@@ -638,24 +640,16 @@ def test_bench_training_prints_speed_time_to_beat_and_ratios(tmp_path):
 @pytest.mark.parametrize(
     "config, base, scenario",
     [
-        ("generalist_sac_m220_sched", "SpeedScheduled", "m220_reversal_tracking_hard"),
-        ("generalist_sac_m220_filtered", "SpeedScheduledFiltered", "m220_reversal_tracking_hard"),
-        ("generalist_sac_kang_ff", "TaskScheduled", "kang_ramp"),
-        ("generalist_sac_kang_ff", "TaskScheduled", "kang_regulation"),
-        ("generalist_sac_m220_ff", "TaskScheduled", "m220_reversal_tracking_slow"),
-        ("generalist_sac_m220_ffsched", "SpeedScheduledFF", "m220_reversal_tracking"),
-        ("generalist_sac_m220_ffsched", "SpeedScheduledFF", "m220_regulation"),
-        ("generalist_sac_m220_gated", "SpeedScheduledFFGated", "m220_reversal_tracking"),
-        ("generalist_sac_m220_restgated", "SpeedScheduledFFRestGated", "m220_regulation"),
-        ("generalist_sac_m220_floorgated", "SpeedScheduledFFFloorGated", "m220_reversal_tracking_slow"),
-        ("generalist_sac_flexible_ro", "SF+relay/residual-observed", "flexible_zero_speed_hard"),
-        ("generalist_sac_flexible_ro", "SF+relay/residual-observed", "flexible_speed_reversal"),
-        ("generalist_sac_flexible_ro_w9", "SF(w9,y1)+relay/residual-observed", "flexible_speed_step"),
+        ("generalist_sac_m220", "SpeedScheduled", "m220_reversal_tracking_slow"),
+        ("generalist_sac_m220", "SpeedScheduled", "m220_regulation"),
+        ("generalist_sac_kang", "TaskScheduled", "kang_ramp"),
+        ("generalist_sac_kang", "TaskScheduled", "kang_regulation"),
+        ("generalist_sac_flexible", "SF+relay/residual-base", "flexible_zero_speed_hard"),
+        ("generalist_sac_flexible", "SF+relay/residual-base", "flexible_speed_step"),
     ],
 )
 def test_a_residual_over_a_scheduled_base_starts_as_that_base_bit_for_bit(config, base, scenario):
-    """The M220 generalist's fifth, seventh to eleventh and thirteenth configs, Kang's tenth and the
-    flexible servo's tenth and twelfth: a base from registry.BASES (not a baseline) in the loop; its
+    """The committed generalists' configs over a base from registry.BASES (not a baseline): its
     zero-output residual's episode equals the base's own, on a tracking scenario and at a set-point, where
     the model's preview is filled in (the flexible servo has none; its base's observer reads the held
     command back)."""
@@ -677,106 +671,78 @@ def test_a_residual_over_a_scheduled_base_starts_as_that_base_bit_for_bit(config
         np.testing.assert_array_equal(got.log[k], ref.log[k])
 
 
-def test_a_gated_base_keeps_its_residual_off_at_set_points_and_grants_all_of_it_on_fast_motion():
-    """SpeedScheduledFFGated commands as SpeedScheduledFF bit for bit; a residual over it is scaled by
-    the schedule's high-loop weight w. A network whose output is not zero (its mean's bias set to 0.5):
-    at a set-point (the reference never moves, w = 0) the residual's episode is the base's own, bit for
-    bit, where over the ungated base it is not; on the 0.2 Hz reversals (peak speed 0.63 rad/s, above
-    speed_high 0.4) w reaches 1 and the gated residual moves the episode as the ungated one does."""
-    (cfg,) = load_config("generalist_sac_m220_gated")
-    model = build_model(cfg, make_training_env(cfg, 0), 0, None)
-    model.policy.actor.mu.bias.data.fill_(0.5)
-
-    def over(base: str) -> LearnedPolicy:
-        return LearnedPolicy(
-            model, inputs=cfg.inputs, base=registry.base_controller(base), alpha=cfg.alpha, plants=("m220",)
-        )
-
-    rest = validation_episodes("m220_regulation")[0]
-    base = run_episode(registry.make("SpeedScheduledFFGated"), rest, keep_log=True)
-    ungated_base = run_episode(registry.make("SpeedScheduledFF"), rest, keep_log=True)
-    np.testing.assert_array_equal(base.log["command"], ungated_base.log["command"])
-    np.testing.assert_array_equal(
-        run_episode(over("SpeedScheduledFFGated"), rest, keep_log=True).log["command"], base.log["command"]
-    )
-    assert not np.array_equal(
-        run_episode(over("SpeedScheduledFF"), rest, keep_log=True).log["command"], base.log["command"]
-    )
-    moving = validation_episodes("m220_reversal_tracking")[0]
-    gated_base, sc = registry.make("SpeedScheduledFFGated"), load_scenario("m220_reversal_tracking")
-    gated_base.reset(EpisodeContext(sc, sc.spec, knowledge_defaults()))
-    shares = []
-    for k in range(400):  # 2 s of the 0.2 Hz reference (0.5 rad), tracked
-        r = 0.5 * np.sin(2 * np.pi * 0.2 * k * gated_base.h)
-        gated_base.command(r, r)
-        shares.append(gated_base.residual_share())
-    assert shares[0] == 0.0 and max(shares) == 1.0 and all(0.0 <= s <= 1.0 for s in shares)
-    moved = run_episode(over("SpeedScheduledFFGated"), moving).metrics["reversal_peak_error"]
-    assert moved != run_episode(registry.make("SpeedScheduledFF"), moving).metrics["reversal_peak_error"]
+def gated(gate: str) -> SpeedScheduled:
+    """The M220 schedule of controllers.yaml with another residual gate (the floor only with `floor`)."""
+    default = SpeedScheduledSettings.defaults().schedules["m220"]
+    floor = default.residual_floor if gate == "floor" else 0.0
+    s = dataclasses.replace(default, residual_gate=gate, residual_floor=floor)
+    return SpeedScheduled(registry.builtin, SpeedScheduledSettings({"m220": s}))
 
 
-def test_a_rest_gated_base_grants_its_residual_all_of_it_at_rest_and_w_while_the_reference_moves():
-    """SpeedScheduledFFRestGated commands as SpeedScheduledFF bit for bit. Its grant is 1 on every sample
-    whose reference equals the last one's (from the second sample of a set-point on; the first has no last
-    one and takes w, 0 at rest), and the schedule's w on every sample of a moving reference, so on the
-    0.05 Hz reversals (peak speed 0.16 rad/s, w at most 0.19) a residual keeps under a fifth of its
-    authority. A residual with non-zero output at a set-point moves the episode, as over the ungated base."""
-    (cfg,) = load_config("generalist_sac_m220_restgated")
-    model = build_model(cfg, make_training_env(cfg, 0), 0, None)
-    model.policy.actor.mu.bias.data.fill_(0.5)
-    rest = validation_episodes("m220_regulation")[0]
-    base = run_episode(registry.make("SpeedScheduledFFRestGated"), rest, keep_log=True)
-    ungated = run_episode(registry.make("SpeedScheduledFF"), rest, keep_log=True)
-    np.testing.assert_array_equal(base.log["command"], ungated.log["command"])
-    over = LearnedPolicy(
-        model, inputs=cfg.inputs, base=registry.base_controller(cfg.base), alpha=cfg.alpha, plants=("m220",)
-    )
-    assert not np.array_equal(run_episode(over, rest, keep_log=True).log["command"], base.log["command"])
-    c, sc = registry.make("SpeedScheduledFFRestGated"), load_scenario("m220_reversal_tracking_slow")
-    c.reset(EpisodeContext(sc, sc.spec, knowledge_defaults()))
-    shares, ws = [], []
-    for k in range(2000):  # 10 s of a 0.05 Hz reference of 0.5 rad, then 1 s held
-        r = 0.5 * np.sin(2 * np.pi * 0.05 * min(k, 1800) * c.h)
-        c.command(r, r)
-        shares.append(c.residual_share())
-        ws.append(c.w)
-    assert shares[:1801] == ws[:1801] and 0.0 < max(ws[:1801]) < 0.2
-    assert shares[1801:] == [1.0] * 199 and ws[-1] < ws[1801]
+def test_a_residual_gate_changes_no_command_of_the_schedule():
+    """Every gate (none, motion, rest, floor) commands as the others, bit for bit, on a set-point and on
+    the 0.05 Hz reversals: the gate is a residual's share, not a loop."""
+    for scenario in ("m220_regulation", "m220_reversal_tracking_slow"):
+        episode = validation_episodes(scenario)[0]
+        logs = [run_episode(gated(g), episode, keep_log=True).log["command"] for g in GATES]
+        for log in logs[1:]:
+            np.testing.assert_array_equal(log, logs[0])
 
 
-def test_a_floor_gated_base_grants_its_residual_all_of_it_at_rest_and_at_least_its_floor_in_motion():
-    """SpeedScheduledFFFloorGated commands as SpeedScheduledFF bit for bit. Its grant is the rest gate's
-    where that is 1 (at rest) or above the floor (fast motion: w reaches 1 at the 0.2 Hz reversals' peak
-    speed of 0.63 rad/s), and the floor (controllers.yaml: 0.5 on the M220) through the 0.05 Hz reversals,
-    where the rest gate grants w < 0.2. A plant without a floor in controllers.yaml is refused by name."""
-    floor = MotionFloorSettings.defaults().residual_floor["m220"]
-    assert floor == 0.5
+def test_each_residual_gate_grants_its_share():
+    """The share of its authority a residual gets, sample by sample, over a 0.05 Hz reversal of 0.5 rad
+    for 9 s, held 1 s, then a 0.2 Hz one (peak speed 0.63 rad/s, above speed_high 0.4): `none` 1
+    throughout; `motion` the schedule's w (0 at rest, below 0.2 on the slow reversal, 1 at the fast
+    one's peak speed); `rest` 1 on every sample whose reference equals the last one's and w otherwise;
+    `floor` as `rest`, and at least the floor (0.5 on the M220) in motion."""
     sc = load_scenario("m220_reversal_tracking_slow")
-    episode = validation_episodes(sc.name)[0]
-    base = run_episode(registry.make("SpeedScheduledFFFloorGated"), episode, keep_log=True)
-    plain = run_episode(registry.make("SpeedScheduledFF"), episode, keep_log=True)
-    np.testing.assert_array_equal(base.log["command"], plain.log["command"])
-    fl, rest = registry.make("SpeedScheduledFFFloorGated"), registry.make("SpeedScheduledFFRestGated")
-    for c in (fl, rest):
+    cs = {g: gated(g) for g in GATES}
+    for c in cs.values():
         c.reset(EpisodeContext(sc, sc.spec, knowledge_defaults()))
-    got, want = [], []
-    for f_hz, n in ((0.05, 1800), (0.2, 1000)):  # 9 s of the slow reversal, 5 s of the fast one, 0.5 rad
-        for k in range(n):
-            r = 0.5 * np.sin(2 * np.pi * f_hz * k * fl.h)
-            for c in (fl, rest):
-                c.command(r, r)
-            got.append(fl.residual_share())
-            want.append(max(rest.residual_share(), floor) if rest.residual_share() < 1.0 else 1.0)
-    assert got == want
-    assert max(got[1:1800]) < 0.6 and min(got[1:1800]) == floor and max(got[1800:]) == 1.0
-    assert "speed_scheduled_ff_floor_gated" in fl.why_not(load_scenario("kang_ramp"))  # no floor for Kang
+    h = cs["none"].h
+    refs = [0.5 * np.sin(2 * np.pi * 0.05 * min(k, 1800) * h) for k in range(2000)]
+    refs += [0.5 * np.sin(2 * np.pi * 0.2 * k * h) for k in range(1000)]
+    shares: dict[str, list[float]] = {g: [] for g in GATES}
+    ws, rest = [], []
+    for r in refs:
+        for g, c in cs.items():
+            c.command(r, r)
+            shares[g].append(c.residual_share())
+        ws.append(cs["none"].w)
+        rest.append(cs["rest"].at_rest)
+    floor = cs["floor"].s.residual_floor
+    assert floor == 0.5 and shares["none"] == [1.0] * len(refs)
+    assert shares["motion"] == ws and 0.0 < max(ws[:1801]) < 0.2 and max(ws[2000:]) == 1.0
+    assert shares["rest"] == [1.0 if at else w for at, w in zip(rest, ws, strict=True)]
+    assert rest[1801:2000] == [True] * 199 and not any(rest[1:1801])
+    assert shares["floor"] == [1.0 if at else max(w, floor) for at, w in zip(rest, ws, strict=True)]
+
+
+def test_a_gated_residual_is_the_base_where_its_share_is_zero():
+    """A network whose output is not zero (its mean's bias set to 0.5): at a set-point under the motion
+    gate (w = 0 throughout) the residual's episode is the base's own, bit for bit; under `none` it is not.
+    On the 0.2 Hz reversals w reaches 1 and the gated residual moves the episode."""
+    (cfg,) = load_config("generalist_sac_m220")
+    model = build_model(cfg, make_training_env(cfg, 0), 0, None)
+    model.policy.actor.mu.bias.data.fill_(0.5)
+
+    def over(gate: str) -> LearnedPolicy:
+        return LearnedPolicy(model, inputs=cfg.inputs, base=gated(gate), alpha=cfg.alpha, plants=("m220",))
+
+    rest = validation_episodes("m220_regulation")[0]
+    base = run_episode(gated("motion"), rest, keep_log=True).log["command"]
+    np.testing.assert_array_equal(run_episode(over("motion"), rest, keep_log=True).log["command"], base)
+    assert not np.array_equal(run_episode(over("none"), rest, keep_log=True).log["command"], base)
+    moving = validation_episodes("m220_reversal_tracking")[0]
+    moved = run_episode(over("motion"), moving).metrics["reversal_peak_error"]
+    assert moved != run_episode(gated("motion"), moving).metrics["reversal_peak_error"]
 
 
 def test_the_training_envs_apply_the_gated_bases_share_as_evaluation_does():
     """The training env's command (what the core steps) is residual_action with each env's own base
-    action and share, as LearnedPolicy's: w < 1 on some steps (m220_random starts at rest and holds) and 1 on
-    others."""
-    (cfg,) = load_config("generalist_sac_m220_gated")
+    action and share, as LearnedPolicy's: the committed M220 config's floor gate grants less than 1 on
+    some steps (m220_random moves) and 1 on others (it starts at rest and holds)."""
+    (cfg,) = load_config("generalist_sac_m220")
     env = make_training_env(cfg, 0)
     env.reset()
     sent, step = [], env.core.step

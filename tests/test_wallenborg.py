@@ -87,15 +87,15 @@ def test_regulator_transfer_function_has_the_regulator_poles_and_static_gain():
     assert reg.dcgain() == pytest.approx(dc)
 
 
-def _iae_with_residual(base: str, seed: int, rms: float) -> float:
-    """IAE (V·s) of a flexible_random validation episode over `base` with a fixed smooth random residual
-    (alpha 0.02, rms `rms` of it, 20-sample correlation; the same draws for every base)."""
-    from frictiongym.agents import registry
+def _iae_with_residual(base, seed: int, rms: float) -> float:
+    """IAE (V·s) of a flexible_random validation episode over `base` (a controller factory) with a fixed
+    smooth random residual (alpha 0.02, rms `rms` of it, 20-sample correlation; the same draws for every
+    base)."""
     from frictiongym.agents.training.env import ResidualEnv
     from frictiongym.envs.servo_env import ServoEnv
 
     env = ServoEnv("flexible_random", randomize=True)
-    res = ResidualEnv(env, registry.base_controller(base), 0.02)
+    res = ResidualEnv(env, base(), 0.02)
     res.reset(seed=seed)
     rng, k, a, iae = np.random.default_rng(0), np.exp(-1 / 20), 0.0, 0.0
     h = env.unwrapped.scenario.control_period
@@ -108,19 +108,24 @@ def _iae_with_residual(base: str, seed: int, rms: float) -> float:
 
 
 def test_an_observer_fed_the_residual_is_sf_relay_alone_and_a_residual_biases_it_less():
-    """SF+relay/residual-observed (a residual base): its observer also sees the residual's part of the held
-    command. Without a residual its episode is SF+relay's bit for bit. With one it is not biased by an
-    input it does not know, so the same small random residual costs it less tracking than it costs
-    SF+relay, whose observer is fed u0 only (Wallenborg's CSFNL/DSFNL): measured 3.0 / 3.7 against
-    4.6 / 5.3 V·s on these episodes, 2.30 V·s with no residual."""
+    """SF+relay with its observer fed the residual (StateFeedback(observe_residual=True), as the residual base
+    SF+relay/residual-base runs it): its observer also sees the residual's part of the held command.
+    Without a residual its episode is SF+relay's bit for bit. With one it is not biased by an input it
+    does not know, so the same small random residual costs it less tracking than it costs SF+relay, whose
+    observer is fed u0 only (Wallenborg's CSFNL/DSFNL): measured 3.0 / 3.7 against 4.6 / 5.3 V·s on these
+    episodes, 2.30 V·s with no residual."""
     from frictiongym.agents import registry
+    from frictiongym.agents.classical import StateFeedback
+
+    def observed():
+        return StateFeedback("relay", observe_residual=True)
 
     episode = Episode("flexible_zero_speed_hard", 500000, True)
     ref = run_episode(registry.make("SF+relay"), episode, keep_log=True)
-    got = run_episode(registry.make("SF+relay/residual-observed"), episode, keep_log=True)
+    got = run_episode(observed(), episode, keep_log=True)
     np.testing.assert_equal(got.metrics, ref.metrics)
     np.testing.assert_array_equal(got.log["command"], ref.log["command"])
-    bases = ("SF+relay/residual-observed", "SF+relay")
+    bases = (observed, registry.BUILTIN["SF+relay"])
     for seed in (500000, 500001):
         alone = [_iae_with_residual(b, seed, 0.0) for b in bases]
         observed, plain = (_iae_with_residual(b, seed, 0.3) for b in bases)
@@ -128,14 +133,14 @@ def test_an_observer_fed_the_residual_is_sf_relay_alone_and_a_residual_biases_it
 
 
 def test_the_loop_below_the_regulator_stability_boundary_rings_less_on_speed_steps():
-    """The residual base SF(w9,y1)+relay/residual-observed: Wallenborg's loop at ω_cl = 9 rad/s, below the
+    """The residual base SF+relay/residual-base: Wallenborg's loop at ω_cl = 9 rad/s, below the
     regulator's stability boundary (9.9 rad/s) and without a describing-function crossing, where the
     default 12 rad/s predicts a friction cycle (§5.1, §6.1). On speed steps it rings less and spends less:
     measured limit cycle 0.0003 / 0.013 V against 0.077 / 0.175 V, effort 0.051 / 0.048 against 0.066 /
     0.068 V rms, IAE 1.01 / 0.86 against 1.51 / 1.63 V·s."""
     from frictiongym.agents import registry
 
-    base = "SF(w9,y1)+relay/residual-observed"
+    base = "SF+relay/residual-base"
     w_cl = registry.make(base).w_cl
     assert w_cl == ResidualBaseSettings.defaults().w_cl == 9.0  # rad/s, controllers.yaml
     assert np.all(regulator_poles(SPEC, w_cl).real < 0)

@@ -26,13 +26,18 @@ ZOO_FILE = configs_dir() / "zoo" / "sac.yml"
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_zoo_file_has_an_entry_per_id_on_a_scenario_of_its_plant():
+def test_zoo_file_has_an_entry_per_plant_on_a_per_scenario_id():
+    """One entry per plant, each on a per-scenario id, so the evaluation env rl-zoo builds from the id
+    alone (without env_kwargs) runs that scenario with a base that applies to it."""
     conf = yaml.safe_load(ZOO_FILE.read_text())
-    assert set(conf) == set(frictiongym.envs.ENV_IDS)
+    plants = {gym.make(i).unwrapped.plant for i in conf}
+    assert plants == {"m220", "flexible_servo", "kang_robot", "emps"} and len(conf) == 4
     for env_id, hyper in conf.items():
-        env = gym.make(env_id, **hyper["env_kwargs"])  # refuses a scenario of another plant
+        assert env_id in frictiongym.envs.SCENARIO_IDS and "scenario" not in hyper["env_kwargs"]
+        env = gym.make(env_id, **hyper["env_kwargs"])
         [wrapper] = hyper["env_wrapper"]
         Residual(env, **wrapper["frictiongym.agents.zoo.Residual"])  # the base applies, needs no hardware
+        Residual(gym.make(env_id), **wrapper["frictiongym.agents.zoo.Residual"])  # the zoo's eval env
 
 
 def test_residual_wrapper_with_a_zero_residual_is_its_base_bit_for_bit():
@@ -69,7 +74,7 @@ def _run(*args: str, env: dict) -> str:
 @pytest.mark.slow
 def test_zoo_train_then_load_as_a_controller_then_record_video(tmp_path):
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl"), "OMP_NUM_THREADS": "1"}
-    common = ["--algo", "sac", "--env", "frictiongym/M220-v0", "-f", str(tmp_path / "logs")]
+    common = ["--algo", "sac", "--env", "frictiongym/M220-ReversalTracking-v0", "-f", str(tmp_path / "logs")]
     zoo = str(ROOT / "scripts" / "zoo.py")
     train = [
         "--gym-packages",
@@ -79,11 +84,13 @@ def test_zoo_train_then_load_as_a_controller_then_record_video(tmp_path):
         "-n",
         "300",
         "--eval-freq",
-        "-1",
+        "200",  # evaluation on: the zoo's evaluation env is built from the id alone
+        "--eval-episodes",
+        "1",
     ]
     _run("-m", "rl_zoo3.train", *common, *train, "--seed", "1", env=env)
-    run = zoo_run(tmp_path / "logs", "sac", "frictiongym/M220-v0")
-    assert zoo_env_kwargs(run)["scenario"] == "m220_reversal_tracking"
+    run = zoo_run(tmp_path / "logs", "sac", "frictiongym/M220-ReversalTracking-v0")
+    assert "scenario" not in zoo_env_kwargs(run)  # the id carries it
     policy = zoo_policy(run, "sac", trust_pickle=True)
     assert policy.base.name == "CoulombViscousFF" and policy.alpha == 0.1
     from frictiongym.envs.scenario import load_scenario

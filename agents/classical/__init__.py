@@ -9,19 +9,10 @@ from .feedforward import CoulombViscousFF, PIDCoulombViscousFF
 from .lugre_observer import LuGreObserver, LuGreObserverSettings
 from .pid import PD, PID, LabPD, PIDSettings, design_pid
 from .scheduled import (
-    MotionFloorSettings,
-    ObserverFilterSettings,
     SpeedScheduled,
-    SpeedScheduledBumpless,
-    SpeedScheduledFF,
-    SpeedScheduledFFFloorGated,
-    SpeedScheduledFFGated,
-    SpeedScheduledFFRestGated,
-    SpeedScheduledFiltered,
     SpeedScheduledSettings,
     TaskScheduled,
     TaskScheduledSettings,
-    TrackingLowSettings,
 )
 from .southward_rdfc import RDFC, RDFCSettings, Southward, SouthwardSettings
 from .state_feedback import ResidualBaseSettings, StateFeedback, StateFeedbackSettings
@@ -34,8 +25,6 @@ __all__ = [
     "LabPD",
     "LuGreObserver",
     "LuGreObserverSettings",
-    "MotionFloorSettings",
-    "ObserverFilterSettings",
     "PIDCoulombViscousFF",
     "PIDSettings",
     "RDFCSettings",
@@ -43,17 +32,10 @@ __all__ = [
     "Southward",
     "SouthwardSettings",
     "SpeedScheduled",
-    "SpeedScheduledBumpless",
-    "SpeedScheduledFF",
-    "SpeedScheduledFFFloorGated",
-    "SpeedScheduledFFGated",
-    "SpeedScheduledFFRestGated",
-    "SpeedScheduledFiltered",
     "SpeedScheduledSettings",
     "StateFeedback",
     "StateFeedbackSettings",
     "TaskScheduled",
     "TaskScheduledSettings",
-    "TrackingLowSettings",
     "design_pid",
 ]

@@ -59,7 +59,7 @@ class StateFeedbackSettings(cfg.FamilySettings):
 @dataclass(frozen=True)
 class ResidualBaseSettings(cfg.FamilySettings):
     """controllers.yaml `state_feedback_residual_base`: w_cl (rad/s), the closed-loop design of the residual
-    base SF(w<w_cl>,y1)+relay/residual-observed (agents/registry.py BASES), not a baseline."""
+    base SF+relay/residual-base (agents/registry.py BASES), not a baseline."""
 
     SECTION: ClassVar[str] = "state_feedback_residual_base"
     w_cl: float
@@ -206,6 +206,7 @@ class StateFeedback(Controller):
         *,
         settings: StateFeedbackSettings | None = None,
         observe_residual: bool = False,
+        name: str | None = None,
     ):
         if compensation not in COMPENSATION:
             raise ValueError(f"compensation {compensation!r} not in {COMPENSATION}")
@@ -217,9 +218,10 @@ class StateFeedback(Controller):
         self.compensation, self.sensor, self.w_cl = compensation, sensor, self.settings.w_cl
         suffix = {"none": "", "relay": "+relay", "highgain": "+highgain"}[compensation]
         self.observe_residual = observe_residual
-        self.name = (
-            f"SF{suffix}" if (w_cl is None and sensor == "y1") else f"SF(w{self.w_cl:g},{sensor}){suffix}"
-        ) + ("/residual-observed" if observe_residual else "")
+        self.name = name or (
+            (f"SF{suffix}" if (w_cl is None and sensor == "y1") else f"SF(w{self.w_cl:g},{sensor}){suffix}")
+            + ("/residual-observed" if observe_residual else "")
+        )
 
     def why_not(self, scenario: Scenario) -> str | None:
         spec = scenario.spec
