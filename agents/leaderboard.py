@@ -20,6 +20,7 @@ import math
 from collections import defaultdict
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -276,7 +277,7 @@ def write(board: Board, out: Path) -> None:
 
 def run(
     suite: str = "default",
-    controllers: list[str] | None = None,
+    controllers: list[Any] | None = None,
     out: Path | None = None,
     progress: bool = True,
     workers: int = 1,
@@ -285,10 +286,12 @@ def run(
     ray: engine.Ray | None = None,
 ) -> tuple[list[EpisodeResult], dict[str, list[dict]]]:
     """Evaluate (the suite, or the given episodes) with the reference rows (Zero, Ideal, Oracle) and each
-    scenario's uncompensated loop always included, and summarize. With out: results go to
+    scenario's uncompensated loop always included, and summarize. `controllers`: names, a user's
+    controllers as "module:attr" / "file.py:attr" specs or classes (registry.entries), or None for every
+    default entry. With out: results go to
     out/episodes.csv incrementally (a rerun resumes), then leaderboard.md, leaderboard.csv (the tables),
     aggregate.csv (the per-plant aggregates) and PNG plots, each written atomically."""
-    models = tuple(str(m) for m in models)
+    controllers, models = registry.entries(controllers, models)
     available = registry.available(models)
     names = controllers or registry.default_entries(models)
     unknown = [n for n in names if n not in available]

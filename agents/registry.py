@@ -1,7 +1,11 @@
 """Controllers by name: the built-in set, the `frictiongym.controllers` entry-point group (a package
-registers `name = "module:factory"`, the factory taking no arguments and returning a Controller), and
-saved models: a folder with a manifest.yaml and policy.safetensors (agents/model_folder.py: a format
-that cannot run code), or a folder of such folders.
+registers `name = "module:factory"`, the factory taking no arguments and returning a Controller), a
+user's own controller named by where it is defined, without packaging (`my_module:MyController` or
+`path/to/file.py:MyController`, as Gymnasium's `gym.make("module:Env")`: a Controller class or a
+factory taking no arguments; it is listed under its controller's `name`), and saved models: a folder
+with a manifest.yaml and policy.safetensors (agents/model_folder.py: a format that cannot run code), or
+a folder of such folders. A run's `models` sources hold the model folders and the user's controllers
+alike, so worker processes build the same controllers by name.
 
     manifest.yaml:  name: SAC-kang          # the leaderboard's name for it
                     algorithm: SAC          # the algorithm that trained it (a record)
@@ -17,6 +21,10 @@ that cannot run code), or a folder of such folders.
 
 from __future__ import annotations
 
+import hashlib
+import importlib
+import importlib.util
+import sys
 from collections.abc import Callable, Sequence
 from functools import cache, partial
 from importlib.metadata import entry_points
@@ -131,10 +139,87 @@ def committed_models(*groups: str) -> list[Path]:
     return out
 
 
+def is_controller_spec(source: str | Path) -> bool:
+    """Whether a source names a user's controller ("module:attr" or "file.py:attr"), not a model folder."""
+    text = str(source)
+    module, _, attr = text.rpartition(":")
+    return bool(module) and attr.isidentifier() and not Path(text).exists()
+
+
+def controller_factory(spec: str) -> Callable[[], Controller]:
+    """The factory a "module:attr" or "path/to/file.py:attr" spec names: a Controller subclass or a
+    callable taking no arguments that returns a Controller (checked by calling it once). A file is
+    imported by its path, under a module name of its own; a module by its import name. Errors are one
+    line naming the spec."""
+    module_name, _, attr = str(spec).rpartition(":")
+    try:
+        if module_name.endswith(".py") or "/" in module_name or "\\" in module_name:
+            path = Path(module_name).resolve()
+            if not path.is_file():
+                raise ValueError(f"{path} is not a file")
+            name = "frictiongym_user_" + hashlib.sha256(str(path).encode()).hexdigest()[:12]
+            module = sys.modules.get(name)
+            if module is None:
+                loader = importlib.util.spec_from_file_location(name, path)
+                module = importlib.util.module_from_spec(loader)
+                sys.modules[name] = module
+                loader.loader.exec_module(module)
+        else:
+            module = importlib.import_module(module_name)
+        factory = getattr(module, attr)
+    except (ImportError, AttributeError, OSError, ValueError, SyntaxError) as e:
+        raise ValueError(f"controller {spec!r}: {type(e).__name__}: {e}") from None
+    try:
+        made = factory() if callable(factory) else factory
+    except Exception as e:  # the user's code: whatever it raises is named, on one line
+        raise ValueError(f"controller {spec!r}: {attr}() failed: {type(e).__name__}: {e}") from None
+    if not isinstance(made, Controller):
+        raise ValueError(f"controller {spec!r}: {attr} gives a {type(made).__name__}, not a Controller")
+    return factory
+
+
+def spec_of(controller: str | type | Callable[[], Controller]) -> str:
+    """A controller as a name or spec the registry and worker processes resolve: a name or spec string as
+    it is; a Controller class or a factory function by its module and qualified name (a script's own,
+    __main__, by its file's path)."""
+    if isinstance(controller, str):
+        return controller
+    if isinstance(controller, Controller):
+        raise TypeError(
+            f"{type(controller).__name__}(): pass its class or a 'module:factory' spec instead of an "
+            "instance (each worker process builds its own controller)"
+        )
+    module = controller.__module__
+    if module == "__main__":
+        module = str(Path(sys.modules["__main__"].__file__).resolve())
+    return f"{module}:{controller.__qualname__}"
+
+
+def entries(
+    controllers: Sequence[str | type | Callable[[], Controller]] | None, models: Sequence[str | Path] = ()
+) -> tuple[list[str] | None, tuple[str, ...]]:
+    """Controllers as the names a run uses, and the run's sources (the model folders, then the specs of
+    the user's controllers among `controllers`, spec_of): the same names resolve in every worker
+    process through the sources. None stays None (a run's default entries)."""
+    sources = [str(m) for m in models]
+    if controllers is None:
+        return None, tuple(sources)
+    names = []
+    for c in controllers:
+        spec = spec_of(c)
+        if is_controller_spec(spec):
+            sources.append(spec)
+            names.append(controller_factory(spec)().name)
+        else:
+            names.append(spec)
+    return names, tuple(dict.fromkeys(sources))
+
+
 def model_dirs(paths: Sequence[str | Path]) -> list[Path]:
-    """The model folders under the given paths (a path is a model folder, or holds model folders)."""
+    """The model folders under the given paths (a path is a model folder, or holds model folders;
+    controller specs among them are skipped: controller_factory's)."""
     out = []
-    for p in map(Path, paths):
+    for p in map(Path, (x for x in paths if not is_controller_spec(x))):
         if (p / MANIFEST).is_file():
             found = [p]
         else:
@@ -202,6 +287,9 @@ def available(models: Sequence[str | Path] = ()) -> dict[str, Callable[[], Contr
 def _available(models: tuple[str, ...]) -> dict[str, Callable[[], Controller]]:
     out = {**BUILTIN, **LIMITS, **BASES}
     extra = [(ep.name, ep.value, ep.load) for ep in entry_points(group=ENTRY_POINT_GROUP)]
+    for spec in (m for m in models if is_controller_spec(m)):
+        factory = controller_factory(spec)
+        extra.append((factory().name, spec, lambda f=factory: f))
     for folder in model_dirs(models):
         name, factory = model_factory(folder)
         extra.append((name, str(folder), lambda f=factory: f))

@@ -56,13 +56,13 @@ def main(argv: list[str] | None = None) -> int:
 
 def run(args: argparse.Namespace, scenario: Scenario) -> int:
     """The windows of every controller asked for (main's checked options)."""
-    models = [str(m) for m in args.models]
-    if args.controllers:
-        for name in args.controllers:
+    controllers, models = registry.entries(args.controllers, args.models)
+    if controllers:
+        for name in controllers:
             reason = registry.why_not(name, models)(scenario)
             if reason is not None:
                 raise ValueError(f"--controllers: {name} does not apply to {args.scenario}: {reason}")
-        names = args.controllers
+        names = controllers
     else:
         names = [n for n in registry.default_entries(models) if registry.why_not(n, models)(scenario) is None]
     controllers = [registry.make(n, models) for n in names]

@@ -51,6 +51,7 @@ def run(
 
     matplotlib.use("Agg")
 
+    controllers, models = registry.entries(controllers, models)  # a user's "module:attr" specs too
     names = controllers or registry.default_entries(models)
     names = [ZERO, *(n for n in names if n != ZERO)]
     structures, left_out = runnable_structures(scenario, structures)

@@ -1,0 +1,75 @@
+"""A user's own controller on the leaderboard without packaging (registry: "module:attr" or
+"file.py:attr"), and the example in examples/ run as its docstring says, on a small inline suite."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+from typing import ClassVar
+
+import numpy as np
+import pytest
+from conftest import load_script
+
+from frictiongym.agents import leaderboard, registry
+from frictiongym.agents.classical import PID
+from frictiongym.envs.suites import Episode
+
+ROOT = Path(__file__).resolve().parents[1]
+EXAMPLE = ROOT / "examples" / "smooth_coulomb_pid.py"
+
+
+class HalfPID(PID):
+    """PID at half its command: a controller defined in a test module, passed as a class."""
+
+    name: ClassVar[str] = "HalfPID"
+
+    def command(self, y: float, r: float) -> float:
+        return 0.5 * super().command(y, r)
+
+
+def test_the_example_runs_on_the_leaderboard_from_its_file_with_two_workers(tmp_path):
+    """The example's own command line (two worker processes build it from its file): its rows stand
+    beside the built-ins' on the tracking scenario, with finite metrics and a moderate effort; at a
+    set-point it is skipped with its reason (tracking only)."""
+    spec = f"{EXAMPLE}:SmoothCoulombPID"
+    out = tmp_path / "lb"
+    args = ["--scenarios", "kang_ramp", "kang_regulation", "--seeds", "5000-5001", "--randomize"]
+    code = load_script("leaderboard").main(
+        [*args, "--controllers", "PID", spec, "--models", "--workers", "2", "--out", str(out)]
+    )
+    assert code == 0
+    rows = list(csv.DictReader((out / "episodes.csv").open()))
+    mine = [r for r in rows if r["controller"] == "SmoothCoulombPID"]
+    pid = [r for r in rows if r["controller"] == "PID" and r["scenario"] == "kang_ramp"]
+    assert [r["scenario"] for r in mine] == ["kang_ramp", "kang_ramp"]
+    for r, p in zip(mine, pid, strict=True):
+        assert np.isfinite(float(r["iae"])) and float(r["effort_rms"]) < 2 * float(p["effort_rms"])
+    assert "SmoothCoulombPID" in (out / "leaderboard.md").read_text()
+
+
+def test_a_class_and_a_spec_resolve_to_the_same_controller_and_an_instance_is_refused():
+    episodes = [Episode("kang_ramp", 5000, True)]
+    by_class, _ = leaderboard.run("inline", [HalfPID], None, False, 1, episodes)
+    by_spec, _ = leaderboard.run("inline", [f"{__name__}:HalfPID"], None, False, 1, episodes)
+    mine = [[r.metrics for r in rows if r.controller == "HalfPID"] for rows in (by_class, by_spec)]
+    assert len(mine[0]) == 1
+    np.testing.assert_equal(mine[0], mine[1])  # NaN metrics (no settling) equal too
+    with pytest.raises(TypeError, match="pass its class or a 'module:factory' spec"):
+        leaderboard.run("inline", [HalfPID()], None, False, 1, episodes)
+
+
+@pytest.mark.parametrize(
+    ("spec", "why"),
+    [
+        ("no_such_module_here:X", "ModuleNotFoundError"),
+        (f"{EXAMPLE}:NoSuchClass", "AttributeError"),
+        ("examples/missing.py:X", "is not a file"),
+        ("numpy:ones", "ones\\(\\) failed: TypeError"),
+        ("fractions:Fraction", "not a Controller"),
+    ],
+)
+def test_a_bad_spec_is_one_line_naming_it(spec, why):
+    with pytest.raises(ValueError, match=why) as e:
+        registry.entries([spec])
+    assert spec in str(e.value) and "\n" not in str(e.value)
