@@ -54,6 +54,35 @@ def package_version() -> str:
         return "unknown"
 
 
+def install_command(extra: str) -> str:
+    """The pip command that adds an extra to this installation as it was made: editable from its folder,
+    from its folder, or by name."""
+    import json
+    from importlib.metadata import PackageNotFoundError, distribution
+    from urllib.parse import unquote, urlparse
+
+    try:
+        dist = distribution("frictiongym")
+    except PackageNotFoundError:
+        return f"pip install 'frictiongym[{extra}]'"
+    text = dist.read_text("direct_url.json")
+    info = json.loads(text) if text else {}
+    base = Path(str(dist.locate_file("")))
+    if not info and (base / "setup.cfg").is_file():  # a checkout's own metadata (setup.py develop)
+        return f"pip install -e '{base}[{extra}]'"
+    url = info.get("url", "")
+    if url.startswith("file://"):
+        path = unquote(urlparse(url).path)
+        editable = info.get("dir_info", {}).get("editable", False)
+        return f"pip install {'-e ' if editable else ''}'{path}[{extra}]'"
+    return f"pip install 'frictiongym[{extra}]'"
+
+
+def missing_extra(e: ModuleNotFoundError, extra: str, what: str) -> str:
+    """One line for a command that needs an optional extra which is not installed."""
+    return f"error: {what} needs the {extra} extra ({e.name} is not installed): {install_command(extra)}"
+
+
 def git_commit() -> str:
     """The commit of the code's git checkout ("" outside one)."""
     try:

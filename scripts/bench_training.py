@@ -29,9 +29,8 @@ from typing import Any
 from tqdm import tqdm
 
 from frictiongym.agents.engine import init_worker, run_interruptibly
-from frictiongym.agents.training import NothingSelected, TrainingRun, run_config_with
 from frictiongym.envs.config import ConfigError, Node, configs_dir, load_yaml
-from frictiongym.envs.records import atomic_text, command_line, csv_text
+from frictiongym.envs.records import atomic_text, command_line, csv_text, missing_extra
 
 
 def load_setups(path: Path) -> tuple[float, dict[str, tuple[str | None, dict[str, Any]]]]:
@@ -53,6 +52,8 @@ def run_one(job: tuple[str, str, str, str | None, dict, int, float, str, str]) -
     """One (setup, seed) run; its figures (picklable for the pool)."""
     config, scenario, setup, algorithm, overrides, seed, budget, out, command = job
     overrides = {"total_timesteps": 10**8, **overrides}  # the budget ends the run
+    from frictiongym.agents.training import NothingSelected, TrainingRun, run_config_with  # rl: main checked
+
     cfg = run_config_with(config, scenario, overrides, algorithm)
     run = TrainingRun(cfg, seed, Path(out), command, progress=False)  # validation in turn
     run.stop_after_train_s = budget
@@ -132,6 +133,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 2)
     ap.add_argument("--out", type=Path, default=Path("out/bench_training"))
     args = ap.parse_args(argv)
+    try:
+        from frictiongym.agents.training import run_config_with  # the rl extra: named if missing
+
+    except ModuleNotFoundError as e:
+        print(missing_extra(e, "rl", "frictiongym bench-training"), file=sys.stderr)
+        return 2
     try:
         budget, setups = load_setups(args.setups)
         if args.only:

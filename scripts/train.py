@@ -24,22 +24,14 @@ import sys
 from pathlib import Path
 
 from frictiongym.agents.engine import disk_error, run_interruptibly
-from frictiongym.agents.sweeps import METRIC, load_sweep, run_sweep
-from frictiongym.agents.training import (
-    NothingSelected,
-    config_names,
-    export_model,
-    load_config,
-    train_many,
-)
-from frictiongym.envs.config import ConfigError
-from frictiongym.envs.records import atomic_text, csv_text
+from frictiongym.envs.config import ConfigError, preset_names
+from frictiongym.envs.records import atomic_text, csv_text, missing_extra
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     what = ap.add_mutually_exclusive_group(required=True)
-    what.add_argument("--config", help=f"a YAML path or a name of configs/agents/ {config_names()}")
+    what.add_argument("--config", help=f"a YAML path or a name of configs/agents/ {preset_names('agents')}")
     what.add_argument("--sweep", help="a YAML path or a name of configs/sweeps/ (runs on Ray Tune)")
     what.add_argument("--export", nargs="+", type=Path, help="copy finished run folders to --out (to commit)")
     ap.add_argument("--address", help="with --sweep: the Ray cluster to run on (default: a local Ray)")
@@ -51,6 +43,16 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.workers < 1 or any(s < 0 for s in args.seed):
         ap.error("--workers must be >= 1 and seeds >= 0")
+    try:
+        from frictiongym.agents.training import (  # the rl extra: a missing one is named, after --help
+            NothingSelected,
+            export_model,
+            load_config,
+            train_many,
+        )
+    except ModuleNotFoundError as e:
+        print(missing_extra(e, "rl", "frictiongym train"), file=sys.stderr)
+        return 2
     if args.sweep:
         return run_interruptibly(
             lambda: sweep(args),
@@ -98,6 +100,11 @@ def main(argv: list[str] | None = None) -> int:
 
 def sweep(args: argparse.Namespace) -> int:
     """Run a sweep on Ray Tune and write DIR/<sweep>.csv (one row per trial)."""
+    try:
+        from frictiongym.agents.sweeps import METRIC, load_sweep, run_sweep  # the distributed extra
+    except ModuleNotFoundError as e:
+        print(missing_extra(e, "distributed", "frictiongym train --sweep"), file=sys.stderr)
+        return 2
 
     try:
         s = load_sweep(args.sweep)

@@ -1,8 +1,9 @@
 """rl-baselines3-zoo with the frictiongym envs registered, and zoo agents judged on the validation suite.
 
-    python scripts/zoo.py train --algo sac --env frictiongym/KangRobot-v0 --conf-file configs/zoo/sac.yml
-    python scripts/zoo.py record_video --algo sac --env frictiongym/KangRobot-v0 -f logs -n 500
-    python scripts/zoo.py validate --algo sac --env frictiongym/KangRobot-v0 -f logs --trust-pickle
+    python scripts/zoo.py train --algo sac --env frictiongym/KangRobot-Regulation-v0 \
+        --conf-file configs/zoo/sac.yml
+    python scripts/zoo.py record_video --algo sac --env frictiongym/KangRobot-Regulation-v0 -f logs -n 500
+    python scripts/zoo.py validate --algo sac --env frictiongym/KangRobot-Regulation-v0 -f logs --trust-pickle
 
 train, enjoy and record_video are the zoo's own commands and take its options (record_video has no
 --gym-packages, hence this front end; videos need the video extra and MUJOCO_GL=egl). validate runs
@@ -15,23 +16,40 @@ from __future__ import annotations
 
 import argparse
 import sys
+from types import ModuleType
 
-from frictiongym.agents.zoo import ZOO_COMMANDS, run_zoo_command, validate, zoo_run
+from frictiongym.envs.records import missing_extra
 from frictiongym.envs.scenario import load_scenario
 
+ZOO_COMMANDS = ("train", "enjoy", "record_video")  # rl_zoo3's own commands, run with the ids registered
 
-def main(argv: list[str] | None = None) -> int | None:
+
+def _zoo_module() -> ModuleType | None:
+    """frictiongym.agents.zoo (stable-baselines3, rl-zoo: the rl and zoo extras), or None after one line
+    naming the missing extra and its install command."""
+    try:
+        from frictiongym.agents import zoo  # the rl and zoo extras: a missing one is named, after --help
+    except ModuleNotFoundError as e:
+        print(missing_extra(e, "rl,zoo", "frictiongym zoo"), file=sys.stderr)
+        return None
+    return zoo
+
+
+def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
-    if argv and argv[0] in ZOO_COMMANDS:
-        run_zoo_command(argv[0], argv[1:])
-        return
+    if argv and argv[0] in ZOO_COMMANDS:  # the zoo's own command: its options (and --help) are the zoo's
+        zoo = _zoo_module()
+        if zoo is None:
+            return 2
+        zoo.run_zoo_command(argv[0], argv[1:])
+        return 0
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="command", required=True)
     for name in ZOO_COMMANDS:
         sub.add_parser(name, help=f"rl_zoo3.{name} with the frictiongym ids registered (zoo options)")
     v = sub.add_parser("validate", help="a zoo run against the best classical baseline (validation suite)")
     v.add_argument("--algo", required=True)
-    v.add_argument("--env", required=True, help="a frictiongym id, e.g. frictiongym/KangRobot-v0")
+    v.add_argument("--env", required=True, help="a frictiongym id, e.g. frictiongym/KangRobot-Regulation-v0")
     v.add_argument("-f", "--folder", default="logs", help="the zoo's log folder")
     v.add_argument("--exp-id", type=int, default=0, help="0: the latest run")
     v.add_argument("--episodes", type=int, default=10, help="first validation-suite episodes")
@@ -39,9 +57,12 @@ def main(argv: list[str] | None = None) -> int | None:
         "--trust-pickle", action="store_true", help="load the run's SB3 zip and VecNormalize (pickles)"
     )
     args = p.parse_args(argv)
-    run = zoo_run(args.folder, args.algo, args.env, args.exp_id)
+    zoo = _zoo_module()
+    if zoo is None:
+        return 2
+    run = zoo.zoo_run(args.folder, args.algo, args.env, args.exp_id)
     try:
-        out = validate(run, args.algo, args.env, args.episodes, trust_pickle=args.trust_pickle)
+        out = zoo.validate(run, args.algo, args.env, args.episodes, trust_pickle=args.trust_pickle)
     except ValueError as e:  # e.g. the pickles, without --trust-pickle
         print(f"error: {e}", file=sys.stderr)
         return 2
@@ -50,7 +71,8 @@ def main(argv: list[str] | None = None) -> int | None:
     print(f"{run}: {out['scenario']}, first {args.episodes} validation episodes, {main} (lower is better)")
     print(f"  best classical {b.name}: {main} {b.main:.4g}, effort_rms {b.effort_rms:.4g}")
     print(f"  zoo agent: {main} {a[main]:.4g}, effort_rms {a['effort_rms']:.4g}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
