@@ -6,12 +6,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from frictiongym.envs.records import atomic_write
+from frictiongym.envs.records import atomic_write, pyplot
 
 
 def save_figure(fig: Any, out: Path, fname: str, dpi: int = 110) -> str:
     """Write a figure as out/fname, PNG (atomically), close it, return its file name."""
-    import matplotlib.pyplot as plt  # matplotlib: imported where a figure is written
+    plt = pyplot()
 
     fig.tight_layout()
     atomic_write(out / fname, lambda p: fig.savefig(p, dpi=dpi, format="png"))

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from frictiongym.envs.metrics import METRIC_NAMES
+from frictiongym.envs.records import pyplot
 from frictiongym.envs.scenario import Scenario
 
 from . import registry, stats
@@ -215,10 +216,7 @@ def figures(board: Board) -> Iterator[tuple[str, Any]]:
     g, and per scenario the time responses of its best and worst episodes (board.responses). One at a time:
     the caller saves and closes each before the next is drawn."""
     results, table, agg, scenarios = board.results, board.table, board.aggregate, board.scenarios
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     ctrls = list(dict.fromkeys(r.controller for r in results))
     colour = {c: f"C{i % 10}" for i, c in enumerate(ctrls)}

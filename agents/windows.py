@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from frictiongym.envs.metrics import from_first_period
+from frictiongym.envs.records import pyplot
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
 
@@ -98,7 +99,7 @@ def controller_windows(
 def plot_windows(rows: Sequence[dict[str, Any]], out: Any, fname: str = "windows.png") -> str:
     """The command's rms and the mean |error| per window (x: the window's middle, s), one line per
     controller, as out/fname; returns the file name."""
-    import matplotlib.pyplot as plt  # matplotlib: imported where a figure is written
+    plt = pyplot()
 
     fig, (ax_e, ax_u) = plt.subplots(2, 1, figsize=(8, 6), sharex=True)
     for name in dict.fromkeys(r["controller"] for r in rows):

@@ -37,7 +37,6 @@ from .training import (
 )
 
 
-
 class Residual(ResidualEnv):
     """Zoo `env_wrapper`: residual mode over the built-in controller `base` with authority `alpha` (a
     fraction of the full command), and the residual's own smoothness weight (ResidualEnv). A base that

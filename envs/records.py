@@ -5,15 +5,17 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import os
 import shlex
 import subprocess
 import sys
 import uuid
 from collections.abc import Callable
-from importlib.metadata import PackageNotFoundError, version
+from importlib.metadata import PackageNotFoundError, distribution, version
 from pathlib import Path
 from typing import Any
+from urllib.parse import unquote, urlparse
 
 
 def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
@@ -37,6 +39,17 @@ def atomic_text(path: Path, text: str) -> None:
     atomic_write(path, lambda p: p.write_text(text))
 
 
+def pyplot() -> Any:
+    """matplotlib.pyplot on the file backend (Agg): the one place the package selects a backend, for the
+    figures it writes as files (agents/figures.py saves them). Imported when a figure is drawn."""
+    import matplotlib  # start-up cost: imported where a figure is drawn
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
 def csv_text(rows: list[dict[str, Any]], fields: list[str] | None = None) -> str:
     """Rows as CSV text with a header: `fields` (default: the first row's keys); missing values empty."""
     buf = io.StringIO()
@@ -57,10 +70,6 @@ def package_version() -> str:
 def install_command(extra: str) -> str:
     """The pip command that adds an extra to this installation as it was made: editable from its folder,
     from its folder, or by name."""
-    import json
-    from importlib.metadata import PackageNotFoundError, distribution
-    from urllib.parse import unquote, urlparse
-
     try:
         dist = distribution("frictiongym")
     except PackageNotFoundError:

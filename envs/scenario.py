@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from . import recorded
+from . import measured
 from .config import (
     ConfigError,
     Node,
@@ -92,7 +92,7 @@ class Reference:
       continuous acceleration, peak velocity 2d/T and peak acceleration 2πd/T² within the limits.
     - recorded: a measured signal replayed, scale·x(t), each sample held until the next (t from the
       recording's first sample; a log at the control rate replays sample for sample): `signal` of the log
-      `file` (envs/recorded.py: a .mat or CSV, a path relative to configs/ or absolute), time in
+      `file` (envs/measured.py: a .mat or CSV, a path relative to configs/ or absolute), time in
       `time_signal`.
     - random: drawn per episode from its seed (envs/references.py, `family`): `episode(seed, t)`.
     """
@@ -125,7 +125,7 @@ class Reference:
 
     def samples(self) -> tuple[np.ndarray, np.ndarray]:
         """A recorded reference's sample times (s, from 0) and values (scaled)."""
-        rec = recorded.load(self.file)
+        rec = measured.load(self.file)
         t = rec.time(self.time_signal)
         return t - t[0], self.scale * rec.signal(self.signal)
 

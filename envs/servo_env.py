@@ -21,6 +21,7 @@ from gymnasium.utils import EzPickle
 from .config import boolean
 from .core import ServoCore, check_action, check_options
 from .metrics import defined_metrics
+from .records import pyplot
 from .sampler import check_seed
 from .scenario import Scenario, load_scenario
 from .step import OBS_CLIP, observation_layout
@@ -242,11 +243,10 @@ class ServoEnv(JsonSafeSpec, gym.Env, EzPickle):
 
     def plot_episode(self, path: str | Path | None = None):
         """Matplotlib figure of the current episode: reference and true output, error, command."""
-        import matplotlib
-
-        if path is not None:
-            matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        if path is not None:  # a file: the file backend (records.pyplot)
+            plt = pyplot()
+        else:  # shown where the user's backend draws it
+            import matplotlib.pyplot as plt  # the user's backend: a figure to show
 
         g = self.core.episode_log(0)
         sens = self.scenario.spec.sensors[self.scenario.tracked_sensor]

@@ -33,8 +33,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from frictiongym.agents.lab import workflow
-from frictiongym.agents.lab.identify import IdentifyOptions, recovery, run
+from frictiongym.agents.lab import drive_workflow
+from frictiongym.agents.lab.experiment_workflow import IdentifyOptions, recovery, run
 from frictiongym.envs.config import ConfigError, plant_names
 from frictiongym.envs.records import atomic_text
 
@@ -105,18 +105,20 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _lab(args: argparse.Namespace) -> int:
-    """The drive-log sub-commands (frictiongym.agents.lab.workflow)."""
+    """The drive-log sub-commands (frictiongym.agents.lab.drive_workflow)."""
 
     if args.kind == "idim":
-        r = workflow.identify(workflow.IdentifyOptions(args.csv, args.validation, delays=tuple(args.delays)))
-        for p in workflow.write_identification(r, args.out):
+        r = drive_workflow.identify(
+            drive_workflow.IdentifyOptions(args.csv, args.validation, delays=tuple(args.delays))
+        )
+        for p in drive_workflow.write_identification(r, args.out):
             print(f"wrote {p}")
         return 0
     if args.scan:
         knob, values = args.scan[0], tuple(float(v) for v in args.scan[1:])
-        text = workflow.scan_markdown(knob, workflow.scan(knob, values, args.csv, args.plant))
+        text = drive_workflow.scan_markdown(knob, drive_workflow.scan(knob, values, args.csv, args.plant))
     else:
-        text = workflow.check_markdown(workflow.check(args.csv, args.plant, args.controller))
+        text = drive_workflow.check_markdown(drive_workflow.check(args.csv, args.plant, args.controller))
     args.out.mkdir(parents=True, exist_ok=True)
     atomic_text(args.out / "check.md", text + "\n")
     print(text)

@@ -13,9 +13,6 @@ import json
 import sys
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
 from tqdm import tqdm
 
 from frictiongym.agents import reproduce

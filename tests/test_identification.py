@@ -13,7 +13,8 @@ import yaml
 
 import frictiongym.envs  # noqa: F401  (registers the envs)
 from frictiongym.agents.lab import experiments as ex
-from frictiongym.agents.lab.identification import (
+from frictiongym.agents.lab.experiment_workflow import document_lines, document_table, friction_from_document
+from frictiongym.agents.lab.fits import (
     coulomb_viscous_fit,
     fit_static,
     fit_step,
@@ -29,7 +30,6 @@ from frictiongym.agents.lab.identification import (
     two_point_step_id,
     write_log,
 )
-from frictiongym.agents.lab.identify import document_lines, document_table, friction_from_document
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.plants.identified import IdentifiedFriction, apply_identified, drive_friction

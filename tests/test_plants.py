@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from frictiongym.agents.lab.identification import two_point_step_id
+from frictiongym.agents.lab.fits import two_point_step_id
 from frictiongym.agents.reproduce import iurian2005, kang1998, wallenborg1987
 from frictiongym.agents.reproduce.iurian2005 import CONFIGS as M220_CONFIGS
 from frictiongym.envs.config import ConfigError

@@ -1,6 +1,6 @@
 """A closed-loop drive log: what a lab records while its drive runs under its own controller (the EMPS
 benchmark's data, or a user's drive). One reader for both the EMPS .mat files and a CSV of the documented
-columns, on top of the world's one file loader (frictiongym.envs.recorded).
+columns, on top of the world's one file loader (frictiongym.envs.measured).
 
 CSV columns: time_s, position_m | position_rad | position_deg, reference_m | reference_rad | reference_deg
 (the controller's set-point), command_V (the drive command as logged, including any injected disturbance),
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from frictiongym.envs import recorded
+from frictiongym.envs import measured
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.records import atomic_text
 from frictiongym.envs.units import deg_to_rad
@@ -98,9 +98,9 @@ def emps_log(which: str) -> DriveLog:
 def read_drive_log(path: str | Path) -> DriveLog:
     """A drive log: a .mat with the EMPS variable names (t, qm, qg, vir, gtau, kp, kv, optionally
     pulses_N), or a CSV of the columns in the module docstring. Errors name the file and the column."""
-    rec = recorded.load(path)
+    rec = measured.load(path)
     if "qm" in rec.signals:
-        recorded.require(rec, ["t", "qm", "qg", "vir"])
+        measured.require(rec, ["t", "qm", "qg", "vir"])
         n = len(rec.signals["t"])
         return _checked(
             DriveLog(

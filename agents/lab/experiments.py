@@ -1,6 +1,6 @@
 """Identification experiments run on a simulated plant as a lab would run them on the rig (seed 000 §2.2-2.3,
 generalised): the same sensors (quantised encoders, noisy tachometers), the same sampled command, the
-plant's delay. Each returns an identification.Log, as read from a hardware CSV log.
+plant's delay. Each returns a fits.Log, as read from a hardware CSV log.
 
 - step: open-loop command step v from rest (§2.2).
 - holds: PI velocity control at a list of speeds, both directions, one segment per hold (§2.3).
@@ -22,7 +22,7 @@ from frictiongym.envs.plants.params import EpisodeParams, spec_with
 from frictiongym.envs.plants.sim import PlantSim
 from frictiongym.envs.plants.spec import PlantSpec
 
-from .identification import Log
+from .fits import Log
 
 
 @dataclass

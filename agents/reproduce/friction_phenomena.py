@@ -24,6 +24,7 @@ import numpy as np
 from frictiongym.agents.lab import radau
 from frictiongym.envs.friction import joint_levels
 from frictiongym.envs.plants import PlantSpec, plant_spec
+from frictiongym.envs.records import pyplot
 from frictiongym.envs.units import deg_to_rad
 
 from ..figures import save_figure
@@ -239,7 +240,7 @@ def rows(m: Measured) -> Iterator[dict]:
 
 
 def figures(m: Measured, out: Path) -> list[str]:
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     names = []
     fig, ax = plt.subplots(figsize=(6, 4))

@@ -10,10 +10,11 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from frictiongym.agents.lab.identification import two_point_step_id
+from frictiongym.agents.lab.fits import two_point_step_id
 from frictiongym.envs.config import Node
 from frictiongym.envs.plants import m220, plant_config, plant_spec
 from frictiongym.envs.plants.sim import PlantSim
+from frictiongym.envs.records import pyplot
 
 from ..figures import save_figure
 from .report import Section, row
@@ -58,7 +59,7 @@ def rows(_: None) -> Iterator[dict]:
 
 def figures(_: None, out: Path) -> list[str]:
     """The simulated 0.25 V step against the measured points and the document's model k/(s(s+a))."""
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     doc = plant_spec("m220").document
     t = np.linspace(0.05, 5.0, 100)

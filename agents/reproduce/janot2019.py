@@ -13,6 +13,7 @@ import numpy as np
 
 from frictiongym.envs.config import Node
 from frictiongym.envs.plants import plant_spec
+from frictiongym.envs.records import pyplot
 
 from ..figures import save_figure
 from ..lab import closed_loop, idim
@@ -70,7 +71,7 @@ def best(rows: tuple[idim.ModelRow, ...]) -> idim.ModelRow:
 
 def figures(rows: tuple[idim.ModelRow, ...], out: Path) -> list[str]:
     """Cross-test force: measured, the published symmetric model, and the best structure of the table."""
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     sym, top = _by(rows, "coulomb_viscous", 0), best(rows)
     fig, ax = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
@@ -181,7 +182,7 @@ def simulation_rows(runs: dict[str, closed_loop.Comparison]) -> Iterator[dict]:
 
 def simulation_figures(runs: dict[str, closed_loop.Comparison], out: Path) -> list[str]:
     """Tracking error and force over time, measured against simulated, on both logs."""
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     fig, ax = plt.subplots(2, 2, figsize=(11, 6), sharex=True)
     for j, which in enumerate(closed_loop.SCENARIOS):

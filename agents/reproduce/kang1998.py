@@ -14,6 +14,7 @@ import numpy as np
 from frictiongym.envs import units
 from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.plants.sim import PlantSim
+from frictiongym.envs.records import pyplot
 from frictiongym.envs.suites import Episode
 from frictiongym.envs.units import rad_to_deg
 
@@ -204,7 +205,7 @@ def _rows(runs: dict[str, EpisodeResult], k: str, prefix: str) -> Iterator[dict]
 
 def figures(runs: dict[str, EpisodeResult], out: Path) -> list[str]:
     """Kang Fig. 7-10 analogues: rotor angle (deg) vs time."""
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     figs = [
         ("kang_fig7_pd.png", ["pd"], "PD control (Fig. 7)"),

@@ -16,6 +16,7 @@ from frictiongym.envs import metrics
 from frictiongym.envs.plants import flexible_servo, plant_spec
 from frictiongym.envs.plants.flexible_servo import tacho_gains
 from frictiongym.envs.plants.sim import PlantSim, linearize
+from frictiongym.envs.records import pyplot
 from frictiongym.envs.suites import Episode
 from frictiongym.envs.units import rad_to_deg
 
@@ -73,7 +74,7 @@ def plant_rows(_: None) -> Iterator[dict]:
 
 def plant_figures(_: None, out: Path) -> list[str]:
     """Bode plots: G1/G2 from the parameters (lines), linearised MuJoCo (dots), sine runs (o)."""
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     f = np.logspace(-1, 1, 60)
     G = np.array(flexible_servo.transfer(plant_spec("flexible_servo"), 2j * np.pi * f)).T
@@ -201,7 +202,7 @@ def baseline_rows(runs: dict[str, EpisodeResult]) -> Iterator[dict]:
 
 def figures(runs: dict[str, EpisodeResult], out: Path) -> list[str]:
     """Analogues of Wallenborg Fig. 4.2-4.4, 6.2, 6.7-6.9: y1 step responses of the cases."""
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     figs = [
         ("wallenborg_fig4_2.png", ["wcl12_y1"], "Fig. 4.2: ω_cl = 12, y1 measured"),

@@ -47,10 +47,6 @@ def run(
 ) -> tuple[list[dict[str, Any]], str]:
     """Run the study into out/ (episodes.csv, sim2real.csv, sim2real.png, sim2real.md, and the closing-the-
     loop study model_error.csv / .png); returns the table and the markdown."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-
     controllers, models = registry.entries(controllers, models)  # a user's "module:attr" specs too
     names = controllers or registry.default_entries(models)
     names = [ZERO, *(n for n in names if n != ZERO)]

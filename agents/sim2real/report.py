@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from frictiongym.envs.records import pyplot
+
 from .. import registry
 from ..base import ZERO
 from .study import AXES, DEGRADED, DESIGNS, MODEL_ERROR_SEEDS, SEEDS, STRUCTURES
@@ -194,10 +196,7 @@ def _fmt_shift(axis: str, s: float) -> str:
 
 def robustness_figure(table: list[dict[str, Any]], scenario: str) -> Any:
     """Robustness curves: main metric and score against each axis's shift, with 95 % intervals."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     axes = [a for a in AXES if any(r["axis"] == a.key for r in table)]
     fig, ax = plt.subplots(2, len(axes), figsize=(3.2 * len(axes), 6), squeeze=False)
@@ -226,10 +225,7 @@ def robustness_figure(table: list[dict[str, Any]], scenario: str) -> Any:
 
 def structures_figure(table: list[dict[str, Any]], scenario: str) -> Any:
     """The main metric (95 % intervals) of each controller on each friction structure."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     rows = [r for r in table if r["axis"] == "friction_model" and r["controller"] != ZERO]
     structures = [s for s in STRUCTURES if any(r["shift"] == s for r in rows)]
@@ -262,10 +258,7 @@ def structures_figure(table: list[dict[str, Any]], scenario: str) -> Any:
 
 def model_error_figure(table: list[dict[str, Any]], metric: str) -> Any:
     """The main metric of each controller designed on the nominal, identified and true model."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     names = sorted({r["controller"] for r in table})
     fig, ax = plt.subplots(figsize=(1.6 * len(names) + 2, 3.6))

@@ -26,7 +26,7 @@ import numpy as np
 from tqdm import tqdm
 
 from frictiongym.agents.lab import experiments as ex
-from frictiongym.agents.lab.identification import identify_simulated
+from frictiongym.agents.lab.fits import identify_simulated
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.plants.identified import IdentifiedFriction, apply_identified
 from frictiongym.envs.plants.params import EpisodeParams, spec_with

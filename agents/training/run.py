@@ -22,7 +22,7 @@ from typing import Any
 from frictiongym.envs.config import (
     ConfigError,
 )
-from frictiongym.envs.records import atomic_text, atomic_write, command_line, csv_text
+from frictiongym.envs.records import atomic_text, atomic_write, command_line, csv_text, pyplot
 from frictiongym.envs.scenario import load_scenario
 
 from .. import stats
@@ -432,10 +432,7 @@ def plot_curve(
     history: list[dict[str, float]], baseline: Baseline, main: str, path: Path, title: str
 ) -> None:
     """Validation main metric and effort against training steps, with the best classical baseline."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     steps = [h["step"] for h in history]
     fig, ax = plt.subplots(2, 1, figsize=(7, 5), sharex=True)

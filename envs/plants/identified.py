@@ -1,7 +1,7 @@
 """Friction identified from data, as a plant sees it: the drive-referred steady-state friction of a plant
 (`drive_friction`, the truth of a simulated plant) and the override that replaces a preset's friction by
 identified values (`IdentifiedFriction`, the preset's `friction_identified` section, `apply_identified`).
-The lab (agents/lab/identification.py) fits these values; the plants only read them.
+The lab (agents/lab/fits.py) fits these values; the plants only read them.
 
 Units: command units "cu" (V or N·m, the plant's command), rad/s; every level is a magnitude.
 """

@@ -1,4 +1,4 @@
-"""Recorded signals (envs/recorded.py): the one loader of measured logs (.mat and CSV), its scalars and
+"""Recorded signals (envs/measured.py): the one loader of measured logs (.mat and CSV), its scalars and
 its errors, which name the file and the variable or row."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import hashlib
 import numpy as np
 import pytest
 
-from frictiongym.envs import recorded
+from frictiongym.envs import measured
 from frictiongym.envs.config import ConfigError, configs_dir
 
 EMPS = configs_dir() / "published" / "emps"
@@ -27,7 +27,7 @@ def test_the_emps_data_in_the_project_are_the_benchmark_files_unchanged(name, md
 
 
 def test_a_mat_log_gives_its_vectors_as_signals_and_its_1x1_variables_as_scalars():
-    rec = recorded.load("published/emps/DATA_EMPS.mat")  # relative to configs/
+    rec = measured.load("published/emps/DATA_EMPS.mat")  # relative to configs/
     assert set(rec.signals) == {"t", "qm", "qg", "vir"}
     assert {"gtau", "kp", "kv"} <= set(rec.scalars)
     assert rec.scalars["kp"] == 160.18 and rec.scalars["kv"] == 243.45  # EMPS eq. (6)
@@ -39,7 +39,7 @@ def test_a_mat_log_gives_its_vectors_as_signals_and_its_1x1_variables_as_scalars
 def test_a_csv_log_reads_columns_scalars_and_provenance(tmp_path):
     p = tmp_path / "log.csv"
     p.write_text("# rig A, 2026-11-30\n# drive_gain_n_per_v = 35.0\ntime_s,x\n0,1\n0.001,2\n0.002,3.5\n")
-    rec = recorded.load(p)
+    rec = measured.load(p)
     assert rec.scalars == {"drive_gain_n_per_v": 35.0}
     assert rec.provenance == ("rig A, 2026-11-30",)
     np.testing.assert_array_equal(rec.signal("x"), [1.0, 2.0, 3.5])
@@ -59,26 +59,26 @@ def test_a_malformed_csv_log_is_refused_naming_the_column_and_row(tmp_path, text
     p = tmp_path / "bad.csv"
     p.write_text(text)
     with pytest.raises(ConfigError, match=match) as e:
-        recorded.load(p)
+        measured.load(p)
     assert str(p) in str(e.value)
 
 
 def test_a_missing_file_an_unknown_format_and_a_time_that_goes_back_are_refused(tmp_path):
     with pytest.raises(ConfigError, match="not found"):
-        recorded.load(tmp_path / "nope.mat")
+        measured.load(tmp_path / "nope.mat")
     (tmp_path / "log.txt").write_text("1\n")
     with pytest.raises(ConfigError, match="unknown log format"):
-        recorded.load(tmp_path / "log.txt")
+        measured.load(tmp_path / "log.txt")
     (tmp_path / "bad.mat").write_bytes(b"not a mat file at all")
     with pytest.raises(ConfigError, match="not a readable MATLAB file"):
-        recorded.load(tmp_path / "bad.mat")
+        measured.load(tmp_path / "bad.mat")
     p = tmp_path / "back.csv"
     p.write_text("time_s,x\n0,1\n0.002,2\n0.001,3\n")
     with pytest.raises(ConfigError, match="time_s: time must increase strictly; it does not at sample 2"):
-        recorded.load(p).time("time_s")
+        measured.load(p).time("time_s")
 
 
 def test_loaded_signals_are_read_only_so_the_cache_cannot_be_corrupted():
-    x = recorded.load("published/emps/DATA_EMPS.mat").signal("qm")
+    x = measured.load("published/emps/DATA_EMPS.mat").signal("qm")
     with pytest.raises(ValueError):
         x[0] = 1.0

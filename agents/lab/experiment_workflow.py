@@ -20,11 +20,11 @@ from tqdm import tqdm
 
 from frictiongym.envs.config import configs_dir
 from frictiongym.envs.plants import plant_config, plant_spec
-from frictiongym.envs.records import atomic_text, command_line, package_version
+from frictiongym.envs.records import atomic_text, command_line, package_version, pyplot
 
 from ..figures import save_figure
 from . import experiments as ex
-from .identification import (
+from .fits import (
     IDENTIFIABLE,
     Estimate,
     FrictionId,
@@ -80,10 +80,7 @@ def _fmt(e: Estimate) -> str:
 
 
 def _plot_static(fid: FrictionId, unit: str, path: Path, truth: dict[str, float] | None = None) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     v = fid.values()
     fig, ax = plt.subplots(figsize=(6.5, 4))
@@ -405,10 +402,7 @@ def run(options: IdentifyOptions, out: Path) -> str:
 
 
 def _plot_document(t: dict[str, np.ndarray], values: dict[str, float], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     rad = _m220_rad_per_count()
     fig, ax = plt.subplots(figsize=(6.5, 4))

@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 from scipy import optimize, stats
 
-from frictiongym.envs import recorded
+from frictiongym.envs import measured
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.plants.identified import drive_friction
 from frictiongym.envs.plants.spec import PlantSpec
@@ -78,12 +78,12 @@ class Log:
 
 
 def read_log(path: str | Path) -> Log:
-    """A CSV log, read by the one loader of measured logs (envs/recorded.py: '#' lines are provenance,
+    """A CSV log, read by the one loader of measured logs (envs/measured.py: '#' lines are provenance,
     every row as long as the header, every value a finite number): header columns time_s, command_V
     or command_Nm, and position_rad|position_deg and/or speed_rad_s|speed_deg_s, optionally segment and
     speed_reference_rad_s (a hold's set-point). Errors name the file, the column and the row (missing
     columns, non-numbers, NaN, time not increasing or not in seconds)."""
-    rec = recorded.load(path)
+    rec = measured.load(path)
     header, src = list(rec.signals), rec.source
     need = "time_s, command_V or command_Nm, and position_rad|position_deg or speed_rad_s|speed_deg_s"
     commands = [c for c in header if c in ("command_V", "command_Nm")]

@@ -1,6 +1,6 @@
-"""Bringing a drive into the suite (agents/lab/workflow.py, scripts/identify.py idim|check): a lab's CSV logs
-give the same identification as the EMPS .mat files, a draft preset the suite loads and simulates, and the
-check of that preset against the measurement."""
+"""Bringing a drive into the suite (agents/lab/drive_workflow.py, scripts/identify.py idim|check): a lab's
+CSV logs give the same identification as the EMPS .mat files, a draft preset the suite loads and
+simulates, and the check of that preset against the measurement."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import yaml
 
-from frictiongym.agents.lab import workflow
+from frictiongym.agents.lab import drive_workflow
 from frictiongym.agents.lab.drive_log import emps_log, write_drive_log
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.plants import plant_spec
@@ -23,10 +23,10 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_the_encoder_grid_of_a_log_is_found_or_reported_absent():
     q = np.array([0.0, 5e-8, 1.5e-7, 1.5e-7, 2.0e-7])
-    assert workflow.resolution(q) == pytest.approx(5e-8)
-    assert workflow.resolution(np.array([0.0, 5e-8, 1.23e-7])) is None
-    assert workflow.resolution(emps_log("estimation").position) == pytest.approx(5e-8)
-    assert workflow.resolution(emps_log("validation").position) is None  # processed (README)
+    assert drive_workflow.resolution(q) == pytest.approx(5e-8)
+    assert drive_workflow.resolution(np.array([0.0, 5e-8, 1.23e-7])) is None
+    assert drive_workflow.resolution(emps_log("estimation").position) == pytest.approx(5e-8)
+    assert drive_workflow.resolution(emps_log("validation").position) is None  # processed (README)
 
 
 def test_a_scenario_takes_a_preset_file_and_names_a_bad_plant(tmp_path):
@@ -79,10 +79,12 @@ def test_a_rotary_log_gets_no_linear_draft_preset(tmp_path):
         for t, q, r, u in zip(log.t, log.position, log.reference, log.command, strict=True)
     ]
     p.write_text("\n".join(text) + "\n")
-    r = workflow.identify(workflow.IdentifyOptions(p, structures=("coulomb_viscous",), delays=(0,)))
+    r = drive_workflow.identify(
+        drive_workflow.IdentifyOptions(p, structures=("coulomb_viscous",), delays=(0,))
+    )
     with pytest.raises(ConfigError, match="the draft preset is a linear drive"):
-        workflow.draft_preset(r)
-    assert [x.name for x in workflow.write_identification(r, tmp_path / "out")] == [
+        drive_workflow.draft_preset(r)
+    assert [x.name for x in drive_workflow.write_identification(r, tmp_path / "out")] == [
         "report.md",
         "result.json",
     ]
@@ -91,9 +93,9 @@ def test_a_rotary_log_gets_no_linear_draft_preset(tmp_path):
 def test_the_measurement_chooses_no_actuation_delay_and_stiff_bristles():
     # the preset's two choices made on the estimation log (configs/plants/emps.yaml): the simulated
     # force is closest to the measured one with no delay beyond the hold, and with the preset's σ0
-    delay = workflow.scan("delay_s", (0.0, 0.001))
+    delay = drive_workflow.scan("delay_s", (0.0, 0.001))
     assert delay[0][1].relative_error_pct["force"] < delay[1][1].relative_error_pct["force"] - 1.0
-    sigma = workflow.scan("sigma0_n_per_m", (2.6e5, 2.6e7))
+    sigma = drive_workflow.scan("sigma0_n_per_m", (2.6e5, 2.6e7))
     assert sigma[1][1].relative_error_pct["force"] < 0.6 * sigma[0][1].relative_error_pct["force"]
     with pytest.raises(ConfigError, match="'mass' not in"):
-        workflow.scan("mass", (1.0,))
+        drive_workflow.scan("mass", (1.0,))
