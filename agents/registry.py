@@ -125,12 +125,12 @@ MODELS_DIR = Path(__file__).parent / "models"  # committed trained models, by gr
 
 # The committed groups the default leaderboard runs: the specialists, each trained on one scenario, and
 # one compensator per plant for all of its scenarios (issue 21; docs/training.md "Generalists").
-LEADERBOARD_GROUPS = ("headline", "generalist")
+LEADERBOARD_GROUPS = ("specialist", "generalist")
 
 
 def committed_models(*groups: str) -> list[Path]:
     """The committed model folders of the groups (agents/models/<group>/*/manifest.yaml), group by group:
-    `headline` and `generalist` (on the default leaderboard, `LEADERBOARD_GROUPS`) or `sim2real` (the
+    `specialist` and `generalist` (on the default leaderboard, `LEADERBOARD_GROUPS`) or `sim2real` (the
     friction-randomisation study's agents)."""
     out: list[Path] = []
     for group in groups:

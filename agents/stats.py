@@ -185,3 +185,28 @@ def performance_profile(scores: Sequence[float], taus: np.ndarray) -> np.ndarray
     if len(s) == 0:
         return np.full(len(taus), math.nan)
     return (s[None, :] > np.asarray(taus)[:, None]).mean(axis=1)
+
+
+MAX_EFFORT_RATIO = 1.2  # a learned compensator may spend at most this times the baseline's effort_rms
+
+
+def why_not_beats(
+    paired: dict[str, float],
+    effort_ratio: float,
+    lc: float,
+    lc_base: float,
+    band: float,
+    max_effort_ratio: float = MAX_EFFORT_RATIO,
+) -> list[str]:
+    """Why a candidate does not beat a baseline (empty: it beats it), the rule of `verdicts`: `paired` is
+    stats.paired(candidate, baseline) of the main metric, effort_ratio the ratio of mean effort_rms, lc
+    and lc_base the mean limit_cycle_amp, band the scenario's settling band. Validation selection on
+    several scenarios (agents/training/) applies the same rule; leaderboard.verdicts the rule."""
+    why = []
+    if not paired["diff_hi"] < 0:
+        why.append("worse" if paired["diff_lo"] > 0 else "difference interval does not exclude 0")
+    if not effort_ratio <= max_effort_ratio:
+        why.append(f"effort {effort_ratio:.2f}x")
+    if not lc <= 1.2 * lc_base + band:
+        why.append(f"limit cycle {lc:.3g} vs {lc_base:.3g}")
+    return why

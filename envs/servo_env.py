@@ -1,4 +1,4 @@
-"""Gymnasium environments: one class over the shared core, three thin per-plant subclasses.
+"""Gymnasium environments: one class over the shared core, four thin per-plant subclasses.
 
 One `step` = one control period: the action is held (ZOH) over the period, the plant's actuation delay,
 jitter and sensor models apply, and the observation is what a digital controller reads at the next

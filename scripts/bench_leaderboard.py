@@ -5,7 +5,7 @@ those folders added (the default leaderboard's own run: target at most 1.3x the 
 measured side by side in one run.
 
     python scripts/bench_leaderboard.py [--workers 2] [--ray] [--no-serial]
-        [--models agents/models/headline agents/models/generalist]
+        [--models agents/models/specialist agents/models/generalist]
 
 Prints the physics floor first (the suite's physics steps per plant times a bare mj_step loop's time per
 step: what no evaluation code can go below), then the wall time of each run, the speed-ups, the Ray

@@ -67,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
         nargs="*",
         type=Path,
         help="saved-model folders (manifest.yaml); default: the committed ones "
-        "(agents/models/headline and agents/models/generalist); "
+        "(agents/models/specialist and agents/models/generalist); "
         "--models alone: none (classical and plug-in controllers only, no rl extra needed)",
     )
     src.add_argument(

@@ -14,7 +14,7 @@ model_error.csv/.png (classical baselines designed on the identified model of ra
 the true parameters: the closing-the-loop study of identification) and sim2real.md (which controller keeps
 its lead where, where each breaks, what model error costs).
 Default models: the committed agents (agents/models/sim2real: trained without randomisation and with
-wide ranges; agents/models/headline and agents/models/generalist, the default leaderboard's: with the
+wide ranges; agents/models/specialist and agents/models/generalist, the default leaderboard's: with the
 nominal ranges); those that apply to the scenario run.
 """
 

@@ -3,7 +3,7 @@
     python scripts/train.py --config configs/agents/residual_sac.yaml [--scenario S] [--seed N ...]
                             [--workers W] [--out DIR] [--resume]
     python scripts/train.py --sweep configs/sweeps/residual_sac_alpha.yaml [--address ADDR] [--workers W]
-    python scripts/train.py --export RUN_DIR ... --out agents/models/headline
+    python scripts/train.py --export RUN_DIR ... --out agents/models/specialist
 
 Each (scenario, seed) run writes DIR/<name>/<scenario>/seed<N>/: the model selected on the validation
 suite with its frozen normalisation statistics, manifest.yaml (algorithm, scenario, base controller, α,

@@ -12,7 +12,7 @@ from frictiongym.agents.engine import Job, run_chunk
 from frictiongym.agents.evaluate import EnvCache, EpisodeResult, evaluate, run_episode, run_episodes
 from frictiongym.envs.suites import Episode
 
-HEADLINE = ("agents/models/headline",)
+HEADLINE = ("agents/models/specialist",)
 
 
 def assert_same(a: EpisodeResult, b: EpisodeResult) -> None:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from frictiongym.agents import leaderboard, registry
+from frictiongym.agents import leaderboard, registry, stats
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode, load_suite
 
@@ -152,9 +152,9 @@ def test_a_row_equal_to_its_baseline_is_a_tie_and_a_row_above_it_is_worse():
     reaches 0 (a row equal to its baseline on every episode gives [0, 0], e.g. a gated residual at a
     set-point, which is its base) does not exclude 0."""
     paired = {"diff": 0.0, "diff_lo": 0.0, "diff_hi": 0.0, "p_improve": 0.0}
-    assert leaderboard.why_not_beats(paired, 1.0, 0.0, 0.0, 0.0) == ["difference interval does not exclude 0"]
+    assert stats.why_not_beats(paired, 1.0, 0.0, 0.0, 0.0) == ["difference interval does not exclude 0"]
     above = {"diff": 1e-4, "diff_lo": 5e-5, "diff_hi": 2e-4, "p_improve": 0.0}
-    assert leaderboard.why_not_beats(above, 1.0, 0.0, 0.0, 0.0) == ["worse"]
+    assert stats.why_not_beats(above, 1.0, 0.0, 0.0, 0.0) == ["worse"]
 
 
 def test_figures_are_drawn_one_at_a_time_each_closed_before_the_next(tmp_path, monkeypatch):

@@ -23,7 +23,7 @@ from frictiongym.agents.model_folder import POLICY, UntrustedModel, read_policy
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.suites import Episode
 
-COMMITTED = Path(__file__).parents[1] / "agents" / "models" / "headline" / "ResSAC-kang_regulation-s0"
+COMMITTED = Path(__file__).parents[1] / "agents" / "models" / "specialist" / "ResSAC-kang_regulation-s0"
 
 
 class Payload:

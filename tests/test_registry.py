@@ -61,9 +61,9 @@ def test_the_default_leaderboard_runs_the_specialists_and_one_generalist_set_per
     from frictiongym.scripts import leaderboard as cli
 
     folders = registry.committed_models(*registry.LEADERBOARD_GROUPS)
-    assert folders == [*registry.committed_models("headline"), *registry.committed_models("generalist")]
+    assert folders == [*registry.committed_models("specialist"), *registry.committed_models("generalist")]
     assert cli.committed_models is registry.committed_models
-    assert cli.LEADERBOARD_GROUPS == ("headline", "generalist")
+    assert cli.LEADERBOARD_GROUPS == ("specialist", "generalist")
     models = tuple(str(f) for f in folders)
     manifests = registry._manifests(models)
     assert len(manifests) == len(folders)  # names distinct
@@ -90,7 +90,7 @@ def test_a_residual_base_is_made_by_name_but_never_a_baseline_or_a_default_entry
     assert set(registry.BASES) == {"SpeedScheduled", "TaskScheduled", "SF+relay/residual-base"}
     used = {
         Manifest.read(f).base_controller
-        for f in registry.committed_models("headline", "generalist", "sim2real")
+        for f in registry.committed_models("specialist", "generalist", "sim2real")
     }
     assert set(registry.BASES) <= used  # every base is one a committed model runs over
     assert set(registry.available()) - set(registry.default_entries()) == set(registry.BASES)

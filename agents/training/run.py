@@ -30,12 +30,12 @@ from ..base import ZERO
 from ..engine import init_worker, provenance, stop_workers
 from ..evaluate import EnvCache
 from ..figures import save_figure
-from ..leaderboard import why_not_beats
 from ..learned import (
     algorithm_class,
 )
 from ..manifest import MANIFEST, MODEL, NORMALIZER, Manifest
 from ..registry import base_controller
+from ..stats import why_not_beats
 from .config import VALIDATION_SUITE, RunConfig
 from .env import make_training_env
 from .model import build_model
@@ -195,7 +195,7 @@ class TrainingRun:
 
     def _across(self, by_scenario: dict[str, list[dict[str, float]]]) -> dict[str, float]:
         """Scenarios whose best classical baseline the model beats by the leaderboard's rule
-        (leaderboard.why_not_beats: paired interval of the per-episode difference below 0, effort,
+        (stats.why_not_beats: paired interval of the per-episode difference below 0, effort,
         limit cycle; on the same validation episodes) and the geometric mean of main metric / baseline's
         (means) over the selection scenarios."""
         won, logs = 0, []
