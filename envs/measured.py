@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .config import ConfigError, configs_dir
+from .units import deg_to_rad
 
 SAMPLING_PERIOD_S = (1e-6, 0.5)  # a drive's log: from 1 MHz to 2 Hz sampling (s)
 
@@ -165,3 +166,114 @@ def require(rec: Recording, names: Sequence[str]) -> None:
     missing = [n for n in names if n not in rec.signals]
     if missing:
         raise ConfigError("signals", f"missing {missing}; the file has {sorted(rec.signals)}", rec.source)
+
+
+# ------------------------------------------------------------------------------------------- drive logs
+# The one drive-log schema (docs/identification.md, "Drive logs"): a CSV's columns by role, each name
+# carrying its unit, converted to SI here; a column of another name is kept in the recording, unread.
+UNIT_OF = {"m": ("m", 1.0), "rad": ("rad", 1.0), "deg": ("rad", deg_to_rad(1.0))}  # suffix: (SI unit, factor)
+SPEED_UNIT_OF = {"m_s": ("m", 1.0), "rad_s": ("rad", 1.0), "deg_s": ("rad", deg_to_rad(1.0))}
+COMMAND_UNITS = ("V", "Nm")
+# The EMPS benchmark's .mat variables (Janot et al. 2019, §2.2) as the schema's columns and scalars
+EMPS_MAT = {"t": "time_s", "qm": "position_m", "qg": "reference_m", "vir": "command_V"}
+EMPS_MAT_SCALARS = {"gtau": "drive_gain_n_per_v", "kp": "kp_per_s", "kv": "kv_v_per_unit_s"}
+
+
+@dataclass(frozen=True)
+class DriveColumns:
+    """A drive log in the one schema, in SI: time (s), the command as logged (command_unit: V or N·m),
+    position, speed and reference in `unit` (m or rad; m/s or rad/s), a hold's speed set-point, the
+    injected part of the command (disturbance, V or the .mat's N), segment labels, scalars (drive gain,
+    controller gains) and the file's own name of each role's column (for replaying it)."""
+
+    source: str
+    t: np.ndarray
+    command: np.ndarray
+    command_unit: str
+    unit: str | None
+    position: np.ndarray | None = None
+    speed: np.ndarray | None = None
+    reference: np.ndarray | None = None
+    speed_reference: np.ndarray | None = None
+    disturbance: np.ndarray | None = None
+    segment: np.ndarray | None = None
+    scalars: dict[str, float] = field(default_factory=dict)
+    provenance: tuple[str, ...] = ()
+    names: dict[str, str] = field(default_factory=dict)  # role -> the file's column name
+
+
+def drive_columns(path: str | Path) -> DriveColumns:
+    """A drive log read by the one schema: a CSV of its columns, or a .mat with the EMPS variable names.
+
+    Columns (units in the name): time_s; command_V or command_Nm; position_m|_rad|_deg and/or
+    speed_m_s|_rad_s|_deg_s; optionally reference_<unit> (the controller's set-point), disturbance_V (the
+    injected part of the command), segment (an experiment's part: an integer label),
+    speed_reference_<unit> (a hold's speed set-point). Scalars as '# name = value' lines:
+    drive_gain_n_per_v or drive_gain_nm_per_v, kp_per_s, kv_v_per_unit_s. Errors name the file and the
+    column: a role given twice, units of two kinds (m and rad), no command, no position or speed."""
+    rec = load(path)
+    src, signals, scalars = rec.source, dict(rec.signals), dict(rec.scalars)
+    if "qm" in signals:  # the EMPS .mat names
+        require(rec, list(EMPS_MAT))
+        signals = {EMPS_MAT.get(k, k): v for k, v in signals.items()}
+        scalars = {EMPS_MAT_SCALARS.get(k, k): v for k, v in scalars.items()}
+    names = {"time": "time_s"} if "qm" not in rec.signals else {"time": "t"}
+    if "time_s" not in signals:
+        raise ConfigError("header", f"no time_s column; the file has {sorted(signals)}", src)
+
+    def one(role: str, prefix: str, units: dict[str, tuple[str, float]]) -> tuple[np.ndarray, str] | None:
+        found = [c for c in signals if c.startswith(prefix) and c[len(prefix) :] in units]
+        if len(found) > 1:
+            raise ConfigError(found[1], f"a second {role} column beside {found[0]}", src)
+        if not found:
+            return None
+        unit, factor = units[found[0][len(prefix) :]]
+        raw = (
+            next((k for k, v in EMPS_MAT.items() if v == found[0]), found[0])
+            if "qm" in rec.signals
+            else found[0]
+        )
+        names[role] = raw
+        return signals[found[0]] * factor, unit  # a copy, in SI
+
+    commands = [c for c in signals if c.startswith("command_") and c[8:] in COMMAND_UNITS]
+    if len(commands) != 1:
+        raise ConfigError("header", f"one command column (command_V or command_Nm); got {commands}", src)
+    columns = {
+        role: one(role, prefix, units)
+        for role, prefix, units in (
+            ("position", "position_", UNIT_OF),
+            ("speed", "speed_", SPEED_UNIT_OF),
+            ("reference", "reference_", UNIT_OF),
+            ("speed_reference", "speed_reference_", SPEED_UNIT_OF),
+        )
+    }
+    if columns["position"] is None and columns["speed"] is None:
+        raise ConfigError("header", f"no position_<unit> or speed_<unit> column; got {sorted(signals)}", src)
+    units = {c[1] for c in columns.values() if c is not None}
+    if len(units) > 1:
+        raise ConfigError(
+            "header", f"columns in two kinds of unit {sorted(units)}: a drive is linear or rotary", src
+        )
+    disturbance = next((c for c in ("disturbance_V", "pulses_N") if c in signals), None)
+    if disturbance is not None:
+        names["disturbance"] = disturbance
+    segment = signals.get("segment")
+    if segment is not None and not np.array_equal(segment, np.round(segment)):
+        raise ConfigError("segment", "labels must be whole numbers", src)
+    return DriveColumns(
+        source=src,
+        t=Recording(src, {names["time"]: signals["time_s"]}).time(names["time"]),
+        command=signals[commands[0]],
+        command_unit=commands[0][8:],
+        unit=units.pop() if units else None,
+        position=columns["position"][0] if columns["position"] else None,
+        speed=columns["speed"][0] if columns["speed"] else None,
+        reference=columns["reference"][0] if columns["reference"] else None,
+        speed_reference=columns["speed_reference"][0] if columns["speed_reference"] else None,
+        disturbance=signals[disturbance] if disturbance else None,
+        segment=segment.astype(int) if segment is not None else None,
+        scalars=scalars,
+        provenance=rec.provenance,
+        names=names,
+    )

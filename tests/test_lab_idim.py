@@ -70,7 +70,9 @@ def test_a_csv_of_the_documented_columns_gives_the_same_identification_as_the_ma
 def test_a_csv_without_the_needed_columns_is_refused_naming_them(tmp_path):
     p = tmp_path / "drive.csv"
     p.write_text("# drive_gain_n_per_v = 35\ntime_s,position_m,command_V\n0,0,0\n0.001,0,0\n")
-    with pytest.raises(ConfigError, match="need one each of time_s, position_m"):
+    with pytest.raises(
+        ConfigError, match=r"needs position_<unit>, reference_<unit> and command_V .* \['reference'\]"
+    ):
         read_drive_log(p)
 
 

@@ -82,3 +82,33 @@ def test_loaded_signals_are_read_only_so_the_cache_cannot_be_corrupted():
     x = measured.load("published/emps/DATA_EMPS.mat").signal("qm")
     with pytest.raises(ValueError):
         x[0] = 1.0
+
+
+def test_one_drive_log_schema_serves_the_experiment_fits_and_idim(tmp_path):
+    """One CSV of the schema is read by the experiment reader (fits.read_log) and the closed-loop reader
+    (drive_log.read_drive_log) through measured.drive_columns: the same time, command and position, in
+    SI from degrees; and the schema's errors name the column: a role given twice, two kinds of unit."""
+
+    from frictiongym.agents.lab.drive_log import read_drive_log
+    from frictiongym.agents.lab.fits import read_log
+
+    t = np.arange(300) * 1e-3
+    deg = 10 * np.sin(2 * np.pi * t)
+    body = "".join(f"{a},{b},{c},{d}\n" for a, b, c, d in zip(t, deg, deg, 0.1 * deg, strict=True))
+    path = tmp_path / "drive.csv"
+    path.write_text("# drive_gain_nm_per_v = 2.0\ntime_s,position_deg,reference_deg,command_V\n" + body)
+    experiment, closed = read_log(path), read_drive_log(path)
+    np.testing.assert_array_equal(experiment.t, closed.t)
+    np.testing.assert_array_equal(experiment.u, closed.command)
+    np.testing.assert_allclose(closed.position, np.deg2rad(deg), rtol=1e-15)
+    np.testing.assert_array_equal(experiment.position, closed.position)
+    assert closed.unit == "rad" and closed.drive_gain == 2.0 and experiment.command_unit == "V"
+    two = tmp_path / "two.csv"
+    two.write_text("time_s,position_rad,position_deg,command_V\n0,0,0,0\n0.001,0,0,0\n")
+    with pytest.raises(ConfigError, match="a second position column") as e:
+        measured.drive_columns(two)
+    assert e.value.field == "position_deg"
+    mixed = tmp_path / "mixed.csv"
+    mixed.write_text("time_s,position_m,reference_rad,command_V\n0,0,0,0\n0.001,0,0,0\n")
+    with pytest.raises(ConfigError, match="a drive is linear or rotary"):
+        measured.drive_columns(mixed)

@@ -1,12 +1,11 @@
 """A closed-loop drive log: what a lab records while its drive runs under its own controller (the EMPS
-benchmark's data, or a user's drive). One reader for both the EMPS .mat files and a CSV of the documented
-columns, on top of the world's one file loader (frictiongym.envs.measured).
-
-CSV columns: time_s, position_m | position_rad | position_deg, reference_m | reference_rad | reference_deg
-(the controller's set-point), command_V (the drive command as logged, including any injected disturbance),
-optionally disturbance_V (the part of command_V that was injected, e.g. test pulses). Scalars as
-'# name = value' lines: drive_gain_n_per_v (linear drive) or drive_gain_nm_per_v (rotary), optionally the
-lab controller's kp_per_s and kv_v_per_unit_s (eq. 6 of the EMPS description).
+benchmark's data, or a user's drive), read by the one drive-log schema and reader
+(frictiongym.envs.measured.drive_columns; docs/identification.md, "Drive logs"). A closed-loop log holds
+at least time_s, position_<unit>, reference_<unit> (the controller's set-point), command_V (the drive
+command as logged, including any injected disturbance) and the drive gain ('# drive_gain_n_per_v =' for
+a linear drive, '# drive_gain_nm_per_v =' for a rotary one); optionally disturbance_V (the injected part
+of command_V, e.g. test pulses) and the lab controller's kp_per_s and kv_v_per_unit_s (eq. 6 of the EMPS
+description).
 """
 
 from __future__ import annotations
@@ -20,14 +19,11 @@ import numpy as np
 from frictiongym.envs import measured
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.records import atomic_text
-from frictiongym.envs.units import deg_to_rad
 
 EMPS_DIR = "published/emps"  # under configs/
 EMPS_SETS = {"estimation": "DATA_EMPS.mat", "validation": "DATA_EMPS_PULSES.mat"}
 # EMPS .mat variable -> meaning (EMPS §2.2; units corrected in configs/published/emps/README.md)
 EMPS_NAMES = {"t": "time", "qm": "position", "qg": "reference", "vir": "command", "pulses_N": "disturbance"}
-POSITION_UNITS = {"m": 1.0, "rad": 1.0, "deg": deg_to_rad(1.0)}  # column suffix -> factor to SI
-UNIT_OF = {"m": "m", "rad": "rad", "deg": "rad"}
 
 
 @dataclass(frozen=True)
@@ -57,7 +53,7 @@ class DriveLog:
         """Scenario overrides that replay this log: its reference and, if it has one, its injected
         disturbance as a force (drive gain x volts) on the load (envs/scenario.py, type recorded)."""
         t, ref = self.column("time"), self.column("reference") or ""
-        scale = POSITION_UNITS[ref[10:]] if ref.startswith("reference_") else 1.0  # CSV unit -> SI
+        scale = measured.UNIT_OF[ref[10:]][1] if ref.startswith("reference_") else 1.0  # CSV unit -> SI
         out: dict = {
             "reference": {
                 "type": "recorded",
@@ -96,54 +92,32 @@ def emps_log(which: str) -> DriveLog:
 
 
 def read_drive_log(path: str | Path) -> DriveLog:
-    """A drive log: a .mat with the EMPS variable names (t, qm, qg, vir, gtau, kp, kv, optionally
-    pulses_N), or a CSV of the columns in the module docstring. Errors name the file and the column."""
-    rec = measured.load(path)
-    if "qm" in rec.signals:
-        measured.require(rec, ["t", "qm", "qg", "vir"])
-        n = len(rec.signals["t"])
-        return _checked(
-            DriveLog(
-                t=rec.time("t"),
-                position=rec.signal("qm"),
-                reference=rec.signal("qg"),
-                command=rec.signal("vir"),
-                disturbance=rec.signals.get("pulses_N", np.zeros(n)),
-                drive_gain=rec.scalar("gtau"),
-                unit="m",
-                source=rec.source,
-                kp=rec.scalars.get("kp"),
-                kv=rec.scalars.get("kv"),
-                provenance=rec.provenance,
-                columns=(("time", "t"), ("reference", "qg"))
-                + ((("disturbance", "pulses_N"),) if "pulses_N" in rec.signals else ()),
-            )
-        )
-    pos = [c for c in rec.signals if c.startswith("position_") and c[9:] in POSITION_UNITS]
-    ref = [c for c in rec.signals if c.startswith("reference_") and c[10:] in POSITION_UNITS]
-    need = "time_s, position_m|_rad|_deg, reference_m|_rad|_deg, command_V"
-    if len(pos) != 1 or len(ref) != 1 or "time_s" not in rec.signals or "command_V" not in rec.signals:
-        raise ConfigError("header", f"need one each of {need}; got {sorted(rec.signals)}", rec.source)
-    unit = UNIT_OF[pos[0][9:]]
-    if UNIT_OF[ref[0][10:]] != unit:
-        raise ConfigError(ref[0], f"the reference must be in the position's unit ({unit})", rec.source)
-    gains = {"m": "drive_gain_n_per_v", "rad": "drive_gain_nm_per_v"}
-    n = len(rec.signals["time_s"])
+    """A closed-loop drive log of the one schema (envs/measured.py drive_columns: a CSV of its columns or
+    a .mat with the EMPS variable names), which must hold a position, a reference, a command in V and the
+    drive gain. Errors name the file and the column."""
+    c = measured.drive_columns(path)
+    missing = [role for role in ("position", "reference") if getattr(c, role) is None]
+    if missing or c.command_unit != "V":
+        need = "position_<unit>, reference_<unit> and command_V (a closed-loop log)"
+        raise ConfigError("header", f"needs {need}; the file lacks {missing or ['command_V']}", c.source)
+    gain = {"m": "drive_gain_n_per_v", "rad": "drive_gain_nm_per_v"}[c.unit]
+    if gain not in c.scalars:
+        raise ConfigError(gain, f"no '# {gain} = value' line (the drive gain)", c.source)
+    roles = ("time", "reference", "disturbance")
     return _checked(
         DriveLog(
-            t=rec.time("time_s"),
-            position=rec.signal(pos[0]) * POSITION_UNITS[pos[0][9:]],
-            reference=rec.signal(ref[0]) * POSITION_UNITS[ref[0][10:]],
-            command=rec.signal("command_V"),
-            disturbance=rec.signals.get("disturbance_V", np.zeros(n)),
-            drive_gain=rec.scalar(gains[unit]),
-            unit=unit,
-            source=rec.source,
-            kp=rec.scalars.get("kp_per_s"),
-            kv=rec.scalars.get("kv_v_per_unit_s"),
-            provenance=rec.provenance,
-            columns=(("time", "time_s"), ("reference", ref[0]))
-            + ((("disturbance", "disturbance_V"),) if "disturbance_V" in rec.signals else ()),
+            t=c.t,
+            position=c.position,
+            reference=c.reference,
+            command=c.command,
+            disturbance=c.disturbance if c.disturbance is not None else np.zeros(len(c.t)),
+            drive_gain=c.scalars[gain],
+            unit=c.unit,
+            source=c.source,
+            kp=c.scalars.get("kp_per_s"),
+            kv=c.scalars.get("kv_v_per_unit_s"),
+            provenance=c.provenance,
+            columns=tuple((role, c.names[role]) for role in roles if role in c.names),
         )
     )
 

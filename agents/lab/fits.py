@@ -35,7 +35,6 @@ from frictiongym.envs.config import ConfigError
 from frictiongym.envs.plants.identified import drive_friction
 from frictiongym.envs.plants.spec import PlantSpec
 from frictiongym.envs.records import atomic_text
-from frictiongym.envs.units import deg_to_rad
 
 # What each experiment can and cannot identify (the docs and the report print this table).
 IDENTIFIABLE = {
@@ -50,8 +49,6 @@ ALPHA = 0.05  # 95 % intervals
 
 
 # ------------------------------------------------------------------------------------------- logs
-POSITION_UNITS = {"rad": 1.0, "deg": deg_to_rad(1.0)}  # a log column's unit -> its factor to SI
-SPEED_UNITS = {"rad_s": 1.0, "deg_s": deg_to_rad(1.0)}
 
 
 @dataclass
@@ -78,32 +75,23 @@ class Log:
 
 
 def read_log(path: str | Path) -> Log:
-    """A CSV log, read by the one loader of measured logs (envs/measured.py: '#' lines are provenance,
-    every row as long as the header, every value a finite number): header columns time_s, command_V
-    or command_Nm, and position_rad|position_deg and/or speed_rad_s|speed_deg_s, optionally segment and
-    speed_reference_rad_s (a hold's set-point). Errors name the file, the column and the row (missing
-    columns, non-numbers, NaN, time not increasing or not in seconds)."""
-    rec = measured.load(path)
-    header, src = list(rec.signals), rec.source
-    need = "time_s, command_V or command_Nm, and position_rad|position_deg or speed_rad_s|speed_deg_s"
-    commands = [c for c in header if c in ("command_V", "command_Nm")]
-    pos = [c for c in header if c.startswith("position_") and c[9:] in POSITION_UNITS]
-    spd = [c for c in header if c.startswith("speed_") and c[6:] in SPEED_UNITS]
-    if "time_s" not in header or len(commands) != 1 or not (pos or spd):
-        raise ConfigError("header", f"missing columns: need {need}; got {header}", src)
-    try:
-        return Log(
-            t=rec.time("time_s"),
-            u=rec.signal(commands[0]),
-            command_unit=commands[0][8:],
-            position=rec.signal(pos[0]) * POSITION_UNITS[pos[0][9:]] if pos else None,
-            speed=rec.signal(spd[0]) * SPEED_UNITS[spd[0][6:]] if spd else None,
-            segment=rec.signal("segment").astype(int) if "segment" in header else None,
-            provenance=[*rec.provenance, *(f"{k} = {v!r}" for k, v in rec.scalars.items())],
-            reference=rec.signal("speed_reference_rad_s") if "speed_reference_rad_s" in header else None,
-        )
-    except ConfigError as e:
-        raise ConfigError(e.field, e.message, src) from None
+    """An experiment log of the one drive-log schema (envs/measured.py drive_columns: every row as long as
+    the header, every value a finite number, time in seconds): time_s, command_V or command_Nm,
+    position_<unit> and/or speed_<unit> (m, rad or deg; m/s, rad/s or deg/s), optionally segment and
+    speed_reference_<unit> (a hold's set-point); a closed-loop log's other columns are not read here.
+    Errors name the file, the column and the row."""
+    c = measured.drive_columns(path)
+    scalars = [f"{k} = {v!r}" for k, v in c.scalars.items()]
+    return Log(
+        t=c.t,
+        u=c.command,
+        command_unit=c.command_unit,
+        position=c.position,
+        speed=c.speed,
+        segment=c.segment,
+        provenance=[*c.provenance, *scalars],
+        reference=c.speed_reference,
+    )
 
 
 def write_log(path: str | Path, log: Log) -> None:
