@@ -27,11 +27,13 @@ COMMANDS = {  # subcommand -> module of frictiongym.scripts
     "reproduce": "reproduce",
     "zoo": "zoo",
     "convert-model": "convert_model",
+    "export": "export",
     "check-draws": "check_draws",
     "bench-envs": "bench_envs",
     "bench-physics": "bench_physics",
     "bench-leaderboard": "bench_leaderboard",
     "bench-training": "bench_training",
+    "bench-runtime": "bench_runtime",
 }
 
 

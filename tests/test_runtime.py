@@ -1,0 +1,157 @@
+"""A controller outside the env (agents/runtime.py): an exported artefact's runtime, fed the readings,
+reference and preview of an env-driven run, gives that run's commands; every file is checked before use.
+
+The runtime forms the observation with the env's arithmetic from raw readings. The harness has the raw
+readings where the float32 observation keeps the encoder's line grid (the M220's, the EMPS's: commands
+equal bit for bit); elsewhere (Kang's 4e-8 rad lines, tachometers) it decodes them from the float32
+observation, and the commands agree to READINGS_TOLERANCE. onnxruntime's float32 network agrees to
+ONNX_TOLERANCE (both in full-scale actions)."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from frictiongym.agents import registry
+from frictiongym.agents.base import EpisodeContext
+from frictiongym.agents.evaluate import EnvCache
+from frictiongym.agents.runtime import RUNTIME, Runtime, export
+from frictiongym.agents.settings import knowledge_defaults
+from frictiongym.envs.config import ConfigError
+from frictiongym.envs.servo_env import decode_observation
+from frictiongym.envs.suites import Episode, load_suite
+
+pytestmark = pytest.mark.skipif(importlib.util.find_spec("onnxruntime") is None, reason="the deploy extra")
+MODELS = registry.committed_models(*registry.LEADERBOARD_GROUPS, "sim2real")
+ONNX_TOLERANCE = 1e-5  # of a full-scale action: float32 network arithmetic against the float64 row-wise one
+READINGS_TOLERANCE = 1e-5  # of a full-scale action: readings decoded from the float32 observation
+EXACT = ("m220", "emps")  # plants whose encoder grid the float32 observation keeps
+
+
+def drive(controller, episode: Episode, runtimes: list[Runtime], steps: int | None = None) -> list[float]:
+    """The env-driven episode of `controller` (its own act on the env's observation, applied clipped);
+    at each step every runtime is given what a drive would give it: the readings (an encoder's from the
+    observation, back on its line grid, so exactly the env's; a tachometer's decoded from the float32
+    observation), the reference and its preview (the env's r(t)); returns, per runtime, the largest
+    |command - the env-driven command| in actions (command / scale)."""
+    env = EnvCache().env(controller, episode)
+    sc = env.scenario
+    obs, _ = env.reset(seed=episode.seed, options=episode.options())
+    controller.reset(EpisodeContext(sc, sc.spec, knowledge_defaults()))
+    for rt in runtimes:
+        rt.reset()
+    worst = [0.0] * len(runtimes)
+    ref = env.core.ref[0]
+    for k in range(steps or sc.episode_steps):
+        a = float(np.asarray(controller.act(obs)).reshape(-1)[0])
+        a = min(1.0, max(-1.0, a))
+        d = decode_observation(sc, obs)
+        readings = [
+            round(d["sensors"][s.name] / s.resolution) * s.resolution
+            if s.kind == "encoder"
+            else d["sensors"][s.name]
+            for s in sc.spec.sensors
+        ]
+        preview = ref[k + 1 : k + 1 + sc.preview_steps].tolist()
+        for i, rt in enumerate(runtimes):
+            u = rt.step(readings, ref[k], preview)
+            worst[i] = max(worst[i], abs(u / sc.action_scale - a))
+        obs, _, term, trunc, _ = env.step(np.array([a], np.float32))
+        if term or trunc:
+            break
+    return worst
+
+
+def test_exact_with_numpy_and_within_float32_with_onnx_on_a_test_episode(tmp_path):
+    """The committed M220 generalist (residual over the speed schedule) on its first `test` episode of the
+    0.2 Hz reversals."""
+    folder = next(f for f in MODELS if f.name == "GenSAC-floorgated-m220_random-s0")
+    art = export(str(folder), tmp_path / "art", "m220_reversal_tracking")
+    assert sorted(p.name for p in art.iterdir()) == ["model", "policy.onnx", RUNTIME]
+    episode = next(e for e in load_suite("test") if e.scenario == "m220_reversal_tracking")
+    c = registry.make(folder.name, [str(folder.parent)])
+    numpy_err, onnx_err = drive(c, episode, [Runtime.load(art), Runtime.load(art, backend="onnxruntime")])
+    assert numpy_err == 0.0 and onnx_err <= ONNX_TOLERANCE
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("folder", MODELS, ids=lambda f: f.name)
+def test_every_committed_model_s_runtime_reproduces_its_test_episode(tmp_path, folder):
+    """Every committed model on the first `test` episode of its scenario (a generalist's: its plant's
+    first tracking scenario there)."""
+    name = folder.name
+    scenario = yaml.safe_load((folder / "manifest.yaml").read_text())["scenario"]
+    tests = [e for e in load_suite("test") if e.scenario == scenario] or [
+        e for e in load_suite("test") if e.scenario.split("_")[0] == scenario.split("_")[0]
+    ]
+    c = registry.make(name, [str(folder.parent)])
+    episode = next(e for e in tests if c.why_not(EnvCache().scenario(e)) is None)
+    art = export(str(folder), tmp_path / "art", episode.scenario)
+    numpy_err, onnx_err = drive(c, episode, [Runtime.load(art), Runtime.load(art, backend="onnxruntime")])
+    exact = EnvCache().scenario(episode).spec.name in EXACT
+    assert numpy_err == 0.0 if exact else numpy_err <= READINGS_TOLERANCE
+    assert onnx_err <= ONNX_TOLERANCE + (0.0 if exact else READINGS_TOLERANCE)
+
+
+@pytest.mark.parametrize(
+    ("name", "scenario"),
+    [
+        ("PID", "kang_ramp"),
+        ("PID+FF", "m220_reversal_tracking"),
+        ("LuGreObserver", "m220_random"),
+        ("Southward", "kang_regulation"),
+        ("RDFC", "kang_regulation"),  # a base that brings hardware (the analog rate loop) into the plant
+        ("SF+relay", "flexible_zero_speed"),
+        ("LabPD", "emps_tracking"),
+        ("SpeedScheduled", "m220_random"),
+    ],
+)
+def test_every_classical_family_s_runtime_gives_its_env_run_s_commands(tmp_path, name, scenario):
+    art = export(name, tmp_path / "art", scenario)
+    assert not (art / "policy.onnx").exists()
+    episode = Episode(scenario, 700000, True)
+    [err] = drive(registry.make(name), episode, [Runtime.load(art)], steps=1500)
+    exact = EnvCache().scenario(episode).spec.name in EXACT
+    assert err == 0.0 if exact else err <= READINGS_TOLERANCE
+
+
+def test_a_changed_file_or_another_design_is_refused(tmp_path):
+    folder = next(f for f in MODELS if f.name == "ResSAC-kang_regulation-s0")
+    art = export(str(folder), tmp_path / "art")
+    onnx = art / "policy.onnx"
+    onnx.write_bytes(onnx.read_bytes() + b"\0")
+    with pytest.raises(ConfigError, match="does not match its recorded SHA-256"):
+        Runtime.load(art)
+    art = export("PID", tmp_path / "pid", "kang_ramp")
+    spec = yaml.safe_load((art / RUNTIME).read_text())
+    spec["params"]["kp"] = -1.0
+    (art / RUNTIME).write_text(yaml.safe_dump(spec))
+    with pytest.raises(ConfigError, match="designs this controller otherwise"):
+        Runtime.load(art)
+
+
+def test_the_export_command_writes_an_artefact_and_refuses_a_scenario_that_does_not_apply(tmp_path, capsys):
+    from conftest import load_script
+
+    main = load_script("export").main
+    assert main(["PID+FF", "--scenario", "m220_random", "--out", str(tmp_path / "a")]) == 0
+    assert Path(capsys.readouterr().out.strip()) == tmp_path / "a"
+    assert main(["PID+FF", "--scenario", "m220_regulation", "--out", str(tmp_path / "b")]) == 2
+    assert "does not apply to m220_regulation" in capsys.readouterr().err
+
+
+@pytest.mark.slow
+def test_the_step_cost_benchmark_runs_and_times_every_controller(tmp_path):
+    from conftest import load_script
+
+    out = tmp_path / "bench.csv"
+    assert load_script("bench_runtime").main(["--steps", "20", "--out", str(out)]) == 0
+    import csv
+
+    rows = list(csv.DictReader(out.open()))
+    assert len(rows) == 8 + 2 * len(MODELS)
+    assert all(0 < float(r["median_us"]) <= float(r["p99_us"]) <= float(r["max_us"]) for r in rows)
