@@ -28,6 +28,8 @@ COMMANDS = {  # subcommand -> module of frictiongym.scripts
     "zoo": "zoo",
     "convert-model": "convert_model",
     "export": "export",
+    "run-drive": "run_drive",
+    "virtual-drive": "virtual_drive",
     "check-draws": "check_draws",
     "bench-envs": "bench_envs",
     "bench-physics": "bench_physics",

@@ -1,0 +1,267 @@
+"""The real-time loop between an exported controller (agents/runtime.py) and a drive, over the drive
+protocol (envs/drive_protocol.py), with a safety supervisor between them (frictiongym run-drive).
+
+The drive paces the loop: it starts its clock when the controller's first datagram (a HOLD, sent every
+HELLO_S until readings come) arrives, and each readings datagram is answered at once with a command. The
+controller's side generates the reference (the scenario's, repeated over its episode length) and its
+preview. The supervisor sees every reading and every command before it leaves, and acts in this order:
+
+- emergency stop (Supervisor.emergency_stop(): a signal, a file appearing) and a clean stop (Ctrl-C):
+  STOP sent, the log closed;
+- watchdog: no readings for `watchdog_s`: HOLD sent (the drive holds zero) every period; none for
+  `stop_after_s` (or no first readings within STARTUP_S): STOP;
+- position outside [position_min, position_max] or the speed (the position's difference per period)
+  above `velocity_limit`: STOP;
+- divergence: |reference - position| above `divergence_error` for `divergence_periods` periods: STOP;
+- the command clipped to ±command_limit and its change per period to `rate_limit` (counted as actions,
+  not stops).
+
+Every sample is logged in the drive-log schema (docs/identification.md: time_s, the sample's nominal
+instant k·h, position_<unit>, reference_<unit>, command_V, the drive gain), plus `supervisor` (the
+action's code, SUPERVISOR_CODES), `compute_s` (the time from a datagram's arrival to its answer) and
+`drive_time_s` (the drive's own timestamp), so a run on a drive feeds the identification directly (a
+lost datagram leaves its sample out).
+"""
+
+from __future__ import annotations
+
+import math
+import select
+import signal
+import socket
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from frictiongym.envs.drive_protocol import HOLD, RUN, STOP, pack_command, unpack_readings
+from frictiongym.envs.records import atomic_text
+from frictiongym.envs.scenario import Scenario
+
+from .runtime import Runtime
+
+STARTUP_S = 10.0  # s: the drive's first readings must come within this, or the run stops (watchdog)
+HELLO_S = 0.01  # s: until then a HOLD is sent this often (the drive starts its clock on the first)
+# the supervisor's action on a sample, as logged
+SUPERVISOR_CODES = {
+    "ok": 0,
+    "clipped": 1,
+    "rate_limited": 2,
+    "hold": 3,
+    "stop_watchdog": 4,
+    "stop_position": 5,
+    "stop_velocity": 6,
+    "stop_divergence": 7,
+    "stop_emergency": 8,
+    "stop_interrupt": 9,
+}
+
+
+@dataclass(frozen=True)
+class Limits:
+    """The supervisor's limits, in the plant's units (tracked output: m or rad; command: V or N·m; s)."""
+
+    command_limit: float
+    rate_limit: float  # largest change of the command per period
+    position_min: float
+    position_max: float
+    velocity_limit: float
+    divergence_error: float
+    divergence_periods: int
+    watchdog_s: float
+    stop_after_s: float
+
+    @classmethod
+    def of(cls, sc: Scenario, reference: np.ndarray, **overrides: Any) -> Limits:
+        """Defaults from the scenario: the command range, half the full range's change per period, the
+        reference's span widened by half the output scale, three times the reference's fastest speed
+        plus the output scale per second, an error of the output scale for 0.1 s, a watchdog of 5
+        periods and a stop after 0.1 s without readings; keyword arguments override them."""
+        h, s = sc.control_period, sc.output_scale
+        speed = float(np.max(np.abs(np.diff(reference)))) / h if len(reference) > 1 else 0.0
+        out = {
+            "command_limit": sc.action_scale,
+            "rate_limit": sc.action_scale,
+            "position_min": float(reference.min()) - 0.5 * s,
+            "position_max": float(reference.max()) + 0.5 * s,
+            "velocity_limit": 3 * speed + s,
+            "divergence_error": s,
+            "divergence_periods": max(1, round(0.1 / h)),
+            "watchdog_s": 5 * h,
+            "stop_after_s": max(0.1, 10 * h),
+        }
+        return cls(**{**out, **overrides})
+
+
+@dataclass
+class Supervisor:
+    """The checks of the module docstring, one reading and one command at a time (no clock of its own:
+    the loop tells it the time)."""
+
+    limits: Limits
+    last_position: float | None = None
+    last_command: float = 0.0
+    diverging: int = 0
+    emergency: bool = False
+    events: dict[str, int] = field(default_factory=lambda: dict.fromkeys(SUPERVISOR_CODES, 0))
+
+    def emergency_stop(self) -> None:
+        self.emergency = True
+
+    def check(self, position: float, reference: float, period: float) -> str:
+        """ "ok", or the stop a reading calls for."""
+        lim = self.limits
+        if self.emergency:
+            return "stop_emergency"
+        if not (lim.position_min <= position <= lim.position_max) or not math.isfinite(position):
+            return "stop_position"
+        if (
+            self.last_position is not None
+            and abs(position - self.last_position) > lim.velocity_limit * period
+        ):
+            return "stop_velocity"
+        self.last_position = position
+        self.diverging = self.diverging + 1 if abs(reference - position) > lim.divergence_error else 0
+        if self.diverging >= lim.divergence_periods:
+            return "stop_divergence"
+        return "ok"
+
+    def limit(self, command: float) -> tuple[float, str]:
+        """The command clipped to the command limit, then its change to the rate limit."""
+        lim, why = self.limits, "ok"
+        u = command if math.isfinite(command) else 0.0
+        if abs(u) > lim.command_limit:
+            u, why = math.copysign(lim.command_limit, u), "clipped"
+        step = u - self.last_command
+        if abs(step) > lim.rate_limit:
+            u, why = self.last_command + math.copysign(lim.rate_limit, step), "rate_limited"
+        self.last_command = u
+        return u, why
+
+    def record(self, what: str) -> str:
+        self.events[what] += 1
+        return what
+
+
+def reference_of(sc: Scenario, steps: int) -> np.ndarray:
+    """The scenario's reference r(t_k) for k < steps, its episode repeated (the controller side's)."""
+    n = sc.episode_steps + sc.preview_steps + 1
+    one = np.asarray(sc.reference(np.arange(n) * sc.control_period), dtype=float)
+    reps = math.ceil((steps + sc.preview_steps + 1) / sc.episode_steps) + 1
+    return np.tile(one[: sc.episode_steps], reps)
+
+
+def run_drive(
+    runtime: Runtime,
+    address: tuple[str, int],
+    drive: tuple[str, int],
+    duration_s: float,
+    log: Path,
+    limits: dict[str, Any] | None = None,
+    estop_file: Path | None = None,
+    ready: Any = None,
+) -> dict[str, Any]:
+    """Close the loop for duration_s (drive periods) or until the supervisor stops it; writes the log (the
+    drive-log schema) and returns the run's figures: periods, the supervisor's events, the stop and why,
+    the compute time (median, 99th percentile, max) and deadline misses (answers later than half a
+    period after their readings arrived). Ctrl-C (SIGINT) stops it cleanly: STOP sent, the log written.
+    `ready`, if given, is set once the socket is bound."""
+    sc = runtime.scenario
+    h = sc.control_period
+    steps = round(duration_s / h)
+    ref = reference_of(sc, steps)
+    sup = Supervisor(Limits.of(sc, ref[: sc.episode_steps], **(limits or {})))
+    tracked = sc.spec.sensors[sc.tracked_sensor]
+    interrupted = []
+    previous = signal.signal(signal.SIGINT, lambda *_: interrupted.append(True)) if _main_thread() else None
+    sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    sock.bind(address)
+    if ready is not None:
+        ready.set()
+    rows: list[tuple] = []
+    compute, stop, last_seen, last_k = [], None, time.perf_counter(), None
+    runtime.reset()
+    try:
+        while stop is None:
+            if interrupted:
+                stop = sup.record("stop_interrupt")
+                break
+            if estop_file is not None and estop_file.exists():
+                sup.emergency_stop()
+            wait = sup.limits.watchdog_s if rows else HELLO_S
+            if not select.select([sock], [], [], wait)[0]:
+                silent = time.perf_counter() - last_seen
+                if silent >= (sup.limits.stop_after_s if rows else STARTUP_S):
+                    stop = sup.record("stop_watchdog")
+                else:  # HOLD: the drive holds zero (and, before its first readings, learns we are here)
+                    sock.sendto(pack_command(0, time.perf_counter(), HOLD, 0.0), drive)
+                    if rows:
+                        sup.record("hold")
+                continue
+            data, sender = sock.recvfrom(2048)
+            arrived = last_seen = time.perf_counter()
+            try:
+                r = unpack_readings(data)
+            except ValueError:
+                continue
+            k = r.seq
+            position = r.values[sc.tracked_sensor]
+            reference = float(ref[k])
+            what = sup.check(position, reference, (k - last_k) * h if last_k is not None else h)
+            last_k = k
+            if what != "ok":
+                stop = sup.record(what)
+                u = 0.0
+            else:
+                preview = ref[k + 1 : k + 1 + sc.preview_steps].tolist()
+                u, what = sup.limit(runtime.step(list(r.values), reference, preview))
+                sup.record(what)
+                sock.sendto(pack_command(k, time.perf_counter(), RUN, u), sender)
+            spent = time.perf_counter() - arrived
+            compute.append(spent)
+            rows.append((k * h, position, reference, u, SUPERVISOR_CODES[what], spent, r.t))
+            if k == steps - 1:  # the run's last period: done
+                break
+    finally:
+        sock.sendto(pack_command(0, time.perf_counter(), STOP, 0.0), drive)
+        sock.close()
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+        _write_log(log, sc, tracked.kind, rows)
+    c = np.asarray(compute) if compute else np.zeros(1)
+    return {
+        "periods": len(rows),
+        "stop": stop,
+        "events": {k: v for k, v in sup.events.items() if v},
+        "compute_s": {
+            "median": float(np.median(c)),
+            "p99": float(np.percentile(c, 99)),
+            "max": float(c.max()),
+        },
+        "deadline_misses": int(np.sum(c > 0.5 * h)),
+        "log": str(log),
+    }
+
+
+def _main_thread() -> bool:
+    import threading  # signal handlers can be set from the main thread only
+
+    return threading.current_thread() is threading.main_thread()
+
+
+def _write_log(path: Path, sc: Scenario, kind: str, rows: list[tuple]) -> None:
+    """The run as a drive log of the schema (an encoder's position in m or rad; a tachometer's reading is
+    logged as the position column's signal in V, for the record)."""
+    unit = "m" if sc.spec.name == "emps" else "rad"
+    gain = {"m": "drive_gain_n_per_v", "rad": "drive_gain_nm_per_v"}[unit]
+    head = [
+        f"# frictiongym run-drive: {sc.name}, control period {sc.control_period} s, tracked {kind}",
+        f"# supervisor codes: {SUPERVISOR_CODES}",
+        f"# {gain} = {sc.spec.actuator_gain!r}",
+    ]
+    cols = f"time_s,position_{unit},reference_{unit},command_V,supervisor,compute_s,drive_time_s"
+    body = [",".join(repr(float(x)) if i != 4 else str(x) for i, x in enumerate(r)) for r in rows]
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_text(path, "\n".join([*head, cols, *body]) + "\n")

@@ -1,0 +1,42 @@
+"""A virtual drive: a plant preset simulated in real time behind the drive protocol (envs/virtual_drive.py),
+to rehearse frictiongym run-drive, faults included, before hardware. Loopback addresses only.
+
+    frictiongym virtual-drive --scenario emps_tracking [--listen HOST:PORT] [--controller HOST:PORT]
+                              [--duration-s S] [--loss P] [--late-s S] [--freeze-at-s S]
+                              [--runaway-at-s S] [--seed N]
+
+Prints its figures as JSON (periods, commands missing and late, the ticks' lateness).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from frictiongym.envs.scenario import scenario_names
+from frictiongym.envs.virtual_drive import Faults, serve
+from frictiongym.scripts.run_drive import address
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scenario", required=True, choices=scenario_names(), metavar="SCENARIO")
+    ap.add_argument("--listen", type=address, default=("127.0.0.1", 47001))
+    ap.add_argument("--controller", type=address, default=("127.0.0.1", 47002))
+    ap.add_argument("--duration-s", type=float, default=10.0)
+    ap.add_argument("--loss", type=float, default=0.0, help="probability a readings datagram is lost")
+    ap.add_argument("--late-s", type=float, default=0.0, help="readings sent this late in their period (s)")
+    ap.add_argument("--freeze-at-s", type=float, help="the drive stops sending from this time (s)")
+    ap.add_argument("--runaway-at-s", type=float, help="full positive command from this time (s)")
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args(argv)
+    faults = Faults(args.loss, args.late_s, args.freeze_at_s, args.runaway_at_s)
+    out = serve(args.scenario, args.listen, args.controller, args.duration_s, faults, args.seed)
+    out = {k: v for k, v in out.items() if k not in ("output", "command")}
+    print(json.dumps(out, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

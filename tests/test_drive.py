@@ -1,0 +1,215 @@
+"""The real-time loop (agents/drive_loop.py) on the virtual drive (envs/virtual_drive.py), over the drive
+protocol on loopback: a run completes and its log is a drive log the identification reads; the
+supervisor catches each fault (lost and late datagrams, a frozen drive, a drive that runs away, an
+emergency stop, Ctrl-C) and logs it; the protocol refuses malformed datagrams."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from frictiongym.agents.drive_loop import SUPERVISOR_CODES, Limits, Supervisor, run_drive
+from frictiongym.agents.lab.drive_log import read_drive_log
+from frictiongym.agents.runtime import Runtime, export
+from frictiongym.envs import drive_protocol as proto
+from frictiongym.envs.scenario import load_scenario
+from frictiongym.envs.virtual_drive import Faults, serve
+
+pytestmark = pytest.mark.skipif(
+    __import__("importlib.util").util.find_spec("onnx") is None, reason="the deploy extra"
+)
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def lab_pd(tmp_path_factory) -> Path:
+    """The EMPS's lab PD exported for its tracking scenario (1 kHz)."""
+    return export("LabPD", tmp_path_factory.mktemp("art") / "labpd", "emps_tracking")
+
+
+def rehearse(
+    art: Path, tmp_path: Path, duration_s: float, faults: Faults | None = None, **kw
+) -> tuple[dict, dict]:
+    """The loop against a virtual drive in a thread; (the loop's figures, the drive's)."""
+    drive, ctrl = ("127.0.0.1", free_port()), ("127.0.0.1", free_port())
+    ready, out = threading.Event(), {}
+    faults = faults or Faults()
+    th = threading.Thread(
+        target=lambda: out.update(serve("emps_tracking", drive, ctrl, duration_s, faults, ready=ready))
+    )
+    th.start()
+    ready.wait(10)
+    try:
+        loop = run_drive(Runtime.load(art), ctrl, drive, duration_s, tmp_path / "log.csv", **kw)
+    finally:
+        th.join(30)
+    return loop, out
+
+
+def test_a_run_completes_and_its_log_is_a_drive_log(lab_pd, tmp_path):
+    loop, drive = rehearse(lab_pd, tmp_path, 1.0)
+    assert loop["stop"] is None and loop["periods"] == drive["periods"] == 1000
+    log = read_drive_log(tmp_path / "log.csv")  # the identification's reader
+    assert (
+        log.unit == "m"
+        and len(log.t) == 1000
+        and log.drive_gain == load_scenario("emps_tracking").spec.actuator_gain
+    )
+    assert np.abs(log.reference - log.position).max() < 2e-3  # it tracks (m)
+    assert loop["compute_s"]["median"] < 1e-3 and isinstance(loop["deadline_misses"], int)
+
+
+def test_lost_datagrams_are_held_by_the_drive_and_the_run_goes_on(lab_pd, tmp_path):
+    """A lost readings datagram gets no command: the drive holds its last one (counted missing) and the
+    loop answers the next; the log leaves the lost samples out."""
+    loop, drive = rehearse(lab_pd, tmp_path, 1.0, Faults(loss=0.2))
+    assert loop["stop"] is None and 700 < loop["periods"] < 900  # about 80 % of the datagrams arrived
+    assert drive["missing_commands"] >= 1000 - loop["periods"] - 5
+
+
+def test_a_frozen_drive_is_stopped_by_the_watchdog(lab_pd, tmp_path):
+    """From 0.5 s the drive sends nothing: the loop holds (HOLD every watchdog_s, 5 ms) for stop_after_s
+    (0.1 s), then stops; the log ends with the last reading."""
+    loop, drive = rehearse(lab_pd, tmp_path, 2.0, Faults(freeze_at_s=0.5))
+    assert loop["stop"] == "stop_watchdog" and 400 < loop["periods"] <= 500
+    assert 10 <= loop["events"]["hold"] <= 25 and drive["stopped_by_controller"]
+    t = np.loadtxt(tmp_path / "log.csv", delimiter=",", comments="#", skiprows=4, usecols=0)
+    assert t[-1] < 0.5
+
+
+def test_a_drive_that_runs_away_is_stopped(lab_pd, tmp_path):
+    loop, drive = rehearse(lab_pd, tmp_path, 2.0, Faults(runaway_at_s=0.3))
+    assert loop["stop"] in ("stop_position", "stop_velocity", "stop_divergence")
+    assert drive["stopped_by_controller"] and loop["periods"] < 2000
+    codes = np.loadtxt(tmp_path / "log.csv", delimiter=",", comments="#", skiprows=4, usecols=4)
+    assert codes[-1] == SUPERVISOR_CODES[loop["stop"]]
+
+
+def test_an_emergency_stop_file_stops_the_run(lab_pd, tmp_path):
+    estop = tmp_path / "STOP"
+    threading.Timer(0.4, estop.touch).start()
+    loop, drive = rehearse(lab_pd, tmp_path, 2.0, estop_file=estop)
+    assert loop["stop"] == "stop_emergency" and drive["stopped_by_controller"] and loop["periods"] < 1000
+
+
+def test_late_readings_are_answered_within_their_period(lab_pd, tmp_path):
+    loop, drive = rehearse(lab_pd, tmp_path, 1.0, Faults(late_s=3e-4))
+    assert loop["stop"] is None and drive["tick_lateness_s"]["median"] < 5e-4
+
+
+@pytest.mark.parametrize(
+    ("readings", "command", "position", "expect"),
+    [
+        ([0.0], 99.0, 0.0, ("ok", "clipped")),
+        ([0.0], 7.0, 0.0, ("ok", "rate_limited")),
+        ([0.0], 0.1, 5.0, ("stop_position", None)),
+    ],
+)
+def test_the_supervisor_s_checks_one_by_one(readings, command, position, expect):
+    limits = Limits(10.0, 1.0, -1.0, 1.0, 10.0, 0.5, 3, 0.005, 0.1)
+    sup = Supervisor(limits)
+    assert sup.check(position, 0.0, 1e-3) == expect[0]
+    if expect[1] is not None:
+        sup.last_command = 9.5
+        assert sup.limit(command)[1] == expect[1]
+    fast = Supervisor(limits)
+    assert fast.check(0.0, 0.0, 1e-3) == "ok" and fast.check(0.5, 0.5, 1e-3) == "stop_velocity"
+    drift = Supervisor(limits)
+    assert [drift.check(0.6 * i / 1000, 0.6, 1e-3) for i in range(3)] == ["ok", "ok", "stop_divergence"]
+    sup.emergency_stop()
+    assert sup.check(0.0, 0.0, 1e-3) == "stop_emergency"
+
+
+def test_the_protocol_round_trips_and_refuses_what_it_is_not():
+    r = proto.unpack_readings(proto.pack_readings(7, 0.25, [1.5, -2.0]))
+    assert r == proto.Readings(7, 0.25, (1.5, -2.0))
+    c = proto.unpack_command(proto.pack_command(7, 0.26, proto.RUN, 3.0))
+    assert c == proto.Command(7, 0.26, proto.RUN, 3.0)
+    for bad in (b"", b"FGR1" + bytes(20), proto.pack_command(1, 0.0, proto.STOP, 0.0)):
+        with pytest.raises(ValueError):
+            proto.unpack_readings(bad)
+    with pytest.raises(ValueError):
+        proto.unpack_command(proto.pack_readings(1, 0.0, [0.0]))
+
+
+def test_ctrl_c_stops_the_command_line_loop_cleanly(lab_pd, tmp_path):
+    """The front ends as a user runs them, in two processes: SIGINT to run-drive sends STOP, writes the
+    log and exits 0."""
+    drive, ctrl = f"127.0.0.1:{free_port()}", f"127.0.0.1:{free_port()}"
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    cli = [sys.executable, "-m", "frictiongym.scripts.cli"]
+    virt = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from frictiongym.scripts.cli import main; sys.exit(main())",
+            "virtual-drive",
+            "--scenario",
+            "emps_tracking",
+            "--listen",
+            drive,
+            "--controller",
+            ctrl,
+            "--duration-s",
+            "20",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    run = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import sys; from frictiongym.scripts.cli import main; sys.exit(main())",
+            "run-drive",
+            str(lab_pd),
+            "--drive",
+            drive,
+            "--listen",
+            ctrl,
+            "--duration-s",
+            "20",
+            "--log",
+            str(tmp_path / "log.csv"),
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+    del cli
+    time.sleep(3.0)
+    run.send_signal(signal.SIGINT)
+    out, _ = run.communicate(timeout=30)
+    figures = json.loads(out)
+    virt_out, _ = virt.communicate(timeout=30)
+    assert run.returncode == 0 and figures["stop"] == "stop_interrupt" and figures["periods"] > 100
+    assert json.loads(virt_out)["stopped_by_controller"]
+    assert read_drive_log(tmp_path / "log.csv").t.size == figures["periods"]
+
+
+@pytest.mark.slow
+def test_a_minute_at_the_emps_1_khz_with_its_deadline_misses_reported(lab_pd, tmp_path):
+    loop, drive = rehearse(lab_pd, tmp_path, 60.0)
+    assert loop["stop"] is None and loop["periods"] == drive["periods"] == 60000
+    assert 0 <= loop["deadline_misses"] < 600 and drive["missing_commands"] < 600  # under 1 %
+    print(
+        json.dumps(
+            {"loop": loop, "drive": {k: v for k, v in drive.items() if k not in ("output", "command")}}
+        )
+    )
