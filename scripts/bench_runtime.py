@@ -33,6 +33,12 @@ CLASSICAL = {  # a classical family on a scenario of each plant it runs on
     "SF+relay": "flexible_zero_speed",
     "LabPD": "emps_tracking",
     "SpeedScheduled": "m220_random",
+    "PD": "kang_ramp",
+    "CoulombViscousFF": "m220_reversal_tracking",
+    "SF": "flexible_zero_speed",
+    "SF+highgain": "flexible_zero_speed",
+    "TaskScheduled": "kang_ramp",
+    "SF+relay/residual-base": "flexible_speed_step",
 }
 
 
