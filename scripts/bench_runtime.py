@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
             period_us = rt.scenario.control_period * 1e6
             rows.append(
                 {
-                    "controller": Path(source).name,
+                    "controller": Path(source).name if Path(source).is_dir() else source,
                     "backend": backend,
                     "scenario": rt.scenario.name,
                     "period_us": period_us,

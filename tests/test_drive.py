@@ -205,7 +205,9 @@ def test_ctrl_c_stops_the_command_line_loop_cleanly(lab_pd, tmp_path):
 
 @pytest.mark.slow
 def test_a_minute_at_the_emps_1_khz_with_its_deadline_misses_reported(lab_pd, tmp_path):
-    loop, drive = rehearse(lab_pd, tmp_path, 60.0)
+    """A minute of real time beside the test suite's other worker: a silence of up to 1 s is tolerated
+    (stop_after_s) on a shared machine; the misses are reported, and stay under 1 %."""
+    loop, drive = rehearse(lab_pd, tmp_path, 60.0, limits={"stop_after_s": 1.0})
     assert loop["stop"] is None and loop["periods"] == drive["periods"] == 60000
     assert 0 <= loop["deadline_misses"] < 600 and drive["missing_commands"] < 600  # under 1 %
     print(
