@@ -152,6 +152,19 @@ def disk_error(e: OSError, out: Path) -> str:
     return f"error: {e.strerror or e}: {e.filename or out} (what was finished stays in {out})"
 
 
+def one_line_errors(fn: Callable[[], int], out: Path) -> int:
+    """fn()'s exit code, or one line on stderr for what a user can cause or meet: another run in `out`, a
+    bad option, model or config (RunMismatch, ValueError: 2) or a file-system failure (disk_error: 1)."""
+    try:
+        return fn()
+    except (RunMismatch, ValueError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        print(disk_error(e, out), file=sys.stderr)
+        return 1
+
+
 def run_interruptibly(fn: Callable[[], int], resume: str) -> int:
     """fn()'s exit code, with Ctrl-C (SIGINT) and SIGTERM stopping it within moments: every row
     finished before the signal stays where fn wrote it, the message says how to resume (`resume`), and

@@ -21,13 +21,7 @@ import time
 from pathlib import Path
 
 from frictiongym.agents import leaderboard
-from frictiongym.agents.engine import (
-    RunMismatch,
-    add_backend_arguments,
-    backend_of,
-    disk_error,
-    run_interruptibly,
-)
+from frictiongym.agents.engine import add_backend_arguments, backend_of, one_line_errors, run_interruptibly
 from frictiongym.agents.registry import BASES, LEADERBOARD_GROUPS, committed_models
 from frictiongym.envs.scenario import scenario_names
 from frictiongym.envs.suites import Episode, suite_names
@@ -80,16 +74,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("out/leaderboard"))
     args = ap.parse_args(argv)
     if args.report_from is not None:
-        try:
+
+        def report() -> int:
             leaderboard.report_from(args.report_from, args.out)
-        except (RunMismatch, ValueError) as e:
-            print(f"error: {e}", file=sys.stderr)
-            return 2
-        except OSError as e:
-            print(disk_error(e, args.out), file=sys.stderr)
-            return 1
-        print(f"wrote {args.out / 'leaderboard.md'}, leaderboard.csv and plots from {args.report_from}")
-        return 0
+            print(f"wrote {args.out / 'leaderboard.md'}, leaderboard.csv and plots from {args.report_from}")
+            return 0
+
+        return one_line_errors(report, args.out)
     ray = backend_of(args, ap)
     if args.scenarios and not args.seeds:
         ap.error("--scenarios needs --seeds")
@@ -110,19 +101,8 @@ def main(argv: list[str] | None = None) -> int:
         )
         return 0
 
-    try:
-        code = run_interruptibly(
-            run, f"the finished rows are in {args.out / 'episodes.csv'}; rerun the same command to resume"
-        )
-    except (RunMismatch, ValueError) as e:  # other options into --out; unknown controllers or bad models
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    except OSError as e:  # a full or read-only disk, a dangling --out: what and where, the rows kept
-        print(
-            f"error: {e.strerror or e}: {e.filename or args.out} (finished rows stay in {args.out})",
-            file=sys.stderr,
-        )
-        return 1
+    resume = f"the finished rows are in {args.out / 'episodes.csv'}; rerun the same command to resume"
+    code = one_line_errors(lambda: run_interruptibly(run, resume), args.out)
     if code:
         return code
     print((args.out / "leaderboard.md").read_text().split("\n![")[0])

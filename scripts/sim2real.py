@@ -25,13 +25,7 @@ import sys
 from pathlib import Path
 
 from frictiongym.agents import sim2real
-from frictiongym.agents.engine import (
-    RunMismatch,
-    add_backend_arguments,
-    backend_of,
-    disk_error,
-    run_interruptibly,
-)
+from frictiongym.agents.engine import add_backend_arguments, backend_of, one_line_errors, run_interruptibly
 from frictiongym.agents.registry import LEADERBOARD_GROUPS, committed_models
 from frictiongym.envs.scenario import scenario_names
 
@@ -86,16 +80,8 @@ def main(argv: list[str] | None = None) -> int:
         print(text)
         return 0
 
-    try:
-        return run_interruptibly(
-            run, f"the finished rows are in {args.out}/episodes.csv; rerun the same command to resume"
-        )
-    except (RunMismatch, ValueError) as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    except OSError as e:
-        print(disk_error(e, args.out), file=sys.stderr)
-        return 1
+    resume = f"the finished rows are in {args.out}/episodes.csv; rerun the same command to resume"
+    return one_line_errors(lambda: run_interruptibly(run, resume), args.out)
 
 
 if __name__ == "__main__":

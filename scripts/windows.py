@@ -15,13 +15,12 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from pathlib import Path
 
 from tqdm import tqdm
 
 from frictiongym.agents import registry
-from frictiongym.agents.engine import disk_error
+from frictiongym.agents.engine import one_line_errors
 from frictiongym.agents.evaluate import EnvCache
 from frictiongym.agents.windows import FIELDS, controller_windows, plot_windows
 from frictiongym.envs.records import atomic_text, csv_text
@@ -44,14 +43,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.window_s >= scenario.control_period:  # a window could hold no sample
         period = scenario.control_period
         ap.error(f"--window-s must be at least the control period, {period:g} s; got {args.window_s}")
-    try:
-        return run(args, scenario)
-    except ValueError as e:  # a bad controller name or model folder: one line naming it
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    except OSError as e:
-        print(disk_error(e, args.out), file=sys.stderr)
-        return 1
+    return one_line_errors(lambda: run(args, scenario), args.out)  # a bad controller, model or disk
 
 
 def run(args: argparse.Namespace, scenario: Scenario) -> int:
