@@ -2,7 +2,7 @@
 end scripts/<command>.py with the same options, e.g.
 
     frictiongym leaderboard --suite default
-    frictiongym train configs/agents/residual_sac.yaml --scenario kang_regulation --seeds 0 1 2
+    frictiongym train --config residual_sac --scenario kang_regulation --seed 0 1 2 --steps 3000
     frictiongym reproduce --sections m220
     frictiongym COMMAND --help
 """

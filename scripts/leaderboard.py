@@ -39,6 +39,14 @@ def seed_range(text: str) -> list[int]:
     return seeds
 
 
+def scenario_name(text: str) -> str:
+    """A scenario of configs/scenarios/ (argparse type): an unknown name is an error pointing to the list,
+    not a list of all 40 in every --help."""
+    if text not in scenario_names():
+        raise argparse.ArgumentTypeError(f"unknown scenario {text!r}: `frictiongym list` prints them")
+    return text
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     src = ap.add_mutually_exclusive_group()
@@ -46,7 +54,11 @@ def main(argv: list[str] | None = None) -> int:
         "--suite", choices=suite_names(), help="a suite of configs/suites.yaml (default: default)"
     )
     src.add_argument(
-        "--scenarios", nargs="+", choices=scenario_names(), help="an inline suite (with --seeds)"
+        "--scenarios",
+        nargs="+",
+        type=scenario_name,
+        metavar="SCENARIO",
+        help="an inline suite (with --seeds); `frictiongym list` prints the scenarios",
     )
     ap.add_argument("--seeds", type=seed_range, help="seeds of the inline suite, e.g. 5000-5049")
     ap.add_argument("--randomize", action="store_true", help="randomise the inline suite's episodes")

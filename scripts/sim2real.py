@@ -27,12 +27,12 @@ from pathlib import Path
 from frictiongym.agents import sim2real
 from frictiongym.agents.engine import add_backend_arguments, backend_of, one_line_errors, run_interruptibly
 from frictiongym.agents.registry import LEADERBOARD_GROUPS, committed_models
-from frictiongym.envs.scenario import scenario_names
+from frictiongym.scripts.leaderboard import scenario_name
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scenario", default="m220_reversal_tracking", choices=scenario_names())
+    ap.add_argument("--scenario", default="m220_reversal_tracking", type=scenario_name, metavar="SCENARIO")
     ap.add_argument(
         "--models", nargs="*", type=Path, help="saved-model folders (default: the committed ones)"
     )

@@ -1,7 +1,7 @@
 """Train learned friction compensators (stable-baselines3 / sb3-contrib) from a training config.
 
     python scripts/train.py --config configs/agents/residual_sac.yaml [--scenario S] [--seed N ...]
-                            [--workers W] [--out DIR] [--resume]
+                            [--steps N] [--workers W] [--out DIR] [--resume]
     python scripts/train.py --sweep configs/sweeps/residual_sac_alpha.yaml [--address ADDR] [--workers W]
     python scripts/train.py --export RUN_DIR ... --out agents/models/specialist
 
@@ -20,6 +20,7 @@ the trials. Needs pip install -e .[distributed].
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -37,12 +38,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--address", help="with --sweep: the Ray cluster to run on (default: a local Ray)")
     ap.add_argument("--scenario", help="train only this scenario of the config")
     ap.add_argument("--seed", type=int, nargs="+", default=[0], help="training seeds (default: 0)")
+    ap.add_argument(
+        "--steps", type=int, help="environment steps per run, replacing the config's total_timesteps (a try)"
+    )
     ap.add_argument("--workers", type=int, default=1, help="parallel runs or trials, one process each")
     ap.add_argument("--out", type=Path, default=Path("out/models"))
     ap.add_argument("--resume", action="store_true", help="continue the runs' checkpoints")
     args = ap.parse_args(argv)
-    if args.workers < 1 or any(s < 0 for s in args.seed):
-        ap.error("--workers must be >= 1 and seeds >= 0")
+    if args.workers < 1 or any(s < 0 for s in args.seed) or (args.steps is not None and args.steps < 1):
+        ap.error("--workers and --steps must be >= 1 and seeds >= 0")
     try:
         from frictiongym.agents.training import (  # the rl extra: a missing one is named, after --help
             NothingSelected,
@@ -67,7 +71,14 @@ def main(argv: list[str] | None = None) -> int:
     def train() -> int:
         manifests.extend(
             train_many(
-                load_config(args.config, args.scenario), args.seed, args.out, args.resume, args.workers
+                [
+                    c if args.steps is None else dataclasses.replace(c, total_timesteps=args.steps)
+                    for c in load_config(args.config, args.scenario)
+                ],
+                args.seed,
+                args.out,
+                args.resume,
+                args.workers,
             )
         )
         return 0

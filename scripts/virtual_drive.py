@@ -14,14 +14,14 @@ import argparse
 import json
 import sys
 
-from frictiongym.envs.scenario import scenario_names
 from frictiongym.envs.virtual_drive import Faults, serve
+from frictiongym.scripts.leaderboard import scenario_name
 from frictiongym.scripts.run_drive import address
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scenario", required=True, choices=scenario_names(), metavar="SCENARIO")
+    ap.add_argument("--scenario", required=True, type=scenario_name, metavar="SCENARIO")
     ap.add_argument("--listen", type=address, default=("127.0.0.1", 47001))
     ap.add_argument("--controller", type=address, default=("127.0.0.1", 47002))
     ap.add_argument("--duration-s", type=float, default=10.0)

@@ -24,14 +24,14 @@ from frictiongym.agents.engine import one_line_errors
 from frictiongym.agents.evaluate import EnvCache
 from frictiongym.agents.windows import FIELDS, controller_windows, plot_windows
 from frictiongym.envs.records import atomic_text, csv_text
-from frictiongym.envs.scenario import Scenario, load_scenario, scenario_names
+from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.suites import Episode
-from frictiongym.scripts.leaderboard import seed_range
+from frictiongym.scripts.leaderboard import scenario_name, seed_range
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scenario", required=True, choices=scenario_names())
+    ap.add_argument("--scenario", required=True, type=scenario_name, metavar="SCENARIO")
     ap.add_argument("--seeds", type=seed_range, required=True, help="episode seeds, e.g. 800000-800004")
     ap.add_argument("--window-s", type=float, default=2.5, help="window length (s; default 2.5)")
     ap.add_argument("--controllers", nargs="+", help="default: every built-in controller defined here")

@@ -855,3 +855,15 @@ def test_a_hyper_parameter_out_of_its_range_is_refused_when_the_config_is_read(t
     with pytest.raises(ConfigError, match=r"expected a (whole )?number in \[") as e:
         load_config(path)
     assert e.value.field.endswith(f"hyperparams.{key}")
+
+
+def test_train_takes_a_step_count_for_a_try(tmp_path, capsys):
+    """`frictiongym train --steps N` replaces the config's total_timesteps for every run (a short try
+    without writing a config); the manifest records N and the command."""
+    code = load_script("train").main(
+        ["--config", str(write_config(tmp_path, "SAC")), "--steps", "130", "--out", str(tmp_path / "runs")]
+    )
+    assert code == 0
+    [manifest] = list((tmp_path / "runs").rglob("manifest.yaml"))
+    m = yaml.safe_load(manifest.read_text())
+    assert m["config"]["total_timesteps"] == 130 and m["steps"] >= 130
