@@ -173,7 +173,6 @@ def run_drive(
     steps = round(duration_s / h)
     ref = reference_of(sc, steps)
     sup = Supervisor(Limits.of(sc, ref[: sc.episode_steps], **(limits or {})))
-    tracked = sc.spec.sensors[sc.tracked_sensor]
     interrupted = []
     previous = signal.signal(signal.SIGINT, lambda *_: interrupted.append(True)) if _main_thread() else None
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -229,7 +228,7 @@ def run_drive(
         sock.close()
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
-        _write_log(log, sc, tracked.kind, rows)
+        _write_log(log, sc, rows)
     c = np.asarray(compute) if compute else np.zeros(1)
     return {
         "periods": len(rows),
@@ -251,13 +250,15 @@ def _main_thread() -> bool:
     return threading.current_thread() is threading.main_thread()
 
 
-def _write_log(path: Path, sc: Scenario, kind: str, rows: list[tuple]) -> None:
+def _write_log(path: Path, sc: Scenario, rows: list[tuple]) -> None:
     """The run as a drive log of the schema (an encoder's position in m or rad; a tachometer's reading is
     logged as the position column's signal in V, for the record)."""
-    unit = "m" if sc.spec.name == "emps" else "rad"
+    sensor = sc.spec.sensors[sc.tracked_sensor]
+    joint = next(j for j in sc.spec.joints if j.name == sensor.joint)
+    unit = "m" if joint.kind == "slide" else "rad"  # the tracked joint's position unit
     gain = {"m": "drive_gain_n_per_v", "rad": "drive_gain_nm_per_v"}[unit]
     head = [
-        f"# frictiongym run-drive: {sc.name}, control period {sc.control_period} s, tracked {kind}",
+        f"# frictiongym run-drive: {sc.name}, control period {sc.control_period} s, tracked {sensor.kind}",
         f"# supervisor codes: {SUPERVISOR_CODES}",
         f"# {gain} = {sc.spec.actuator_gain!r}",
     ]

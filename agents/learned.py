@@ -16,10 +16,8 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import hashlib
 import importlib
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
@@ -143,10 +141,6 @@ def algorithm_class(algo: str) -> Any:
 def is_jax(model: Any) -> bool:
     """Whether a model is sbx's (JAX / flax networks), not a torch one."""
     return type(model).__module__.split(".")[0] == "sbx"
-
-
-def sha256(path: str | Path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 def _actor_leaves(policy: Any) -> tuple[Any, Any, list[Any], bool] | None:

@@ -140,7 +140,6 @@ def read_policy(folder: Path, manifest: Any) -> tuple[LayerNetwork, Normalizer |
     if not isinstance(layers, list) or not layers or any(k not in LAYER_KINDS for k in layers):
         raise net.error("layers", f"expected a list of {list(LAYER_KINDS)}, got {layers!r}")
     built: list[tuple[str, np.ndarray | None, np.ndarray | None]] = []
-    width: int | None = None  # the previous linear layer's output size
     observes = net.get("observes")
     if not (isinstance(observes, list) and len(observes) == 1 and _count(observes[0])):
         raise net.error("observes", f"expected [input size], got {observes!r}")
@@ -149,7 +148,7 @@ def read_policy(folder: Path, manifest: Any) -> tuple[LayerNetwork, Normalizer |
         isinstance(columns, list) and all(_count(c, 0) and c < observes[0] for c in columns) and columns
     ):
         raise net.error("columns", f"expected null or input indices below {observes[0]}, got {columns!r}")
-    width = len(columns) if columns is not None else observes[0]
+    width = len(columns) if columns is not None else observes[0]  # each linear layer's input size
     used = {"action.low", "action.high"}
     for i, kind in enumerate(layers):
         if kind != "linear":
@@ -170,7 +169,7 @@ def read_policy(folder: Path, manifest: Any) -> tuple[LayerNetwork, Normalizer |
         raise net.error("layers", f"the output size {width} does not match action.low/high in {model}")
     squash = net.boolean("squash")
     normalizer = None
-    if (stats := net.get("normalizer")) is not None:
+    if net.get("normalizer") is not None:
         n = net.section("normalizer")
         mean, var = arrays.get("normalizer.mean"), arrays.get("normalizer.var")
         if mean is None or var is None or mean.shape != (observes[0],) or var.shape != mean.shape:
@@ -181,7 +180,6 @@ def read_policy(folder: Path, manifest: Any) -> tuple[LayerNetwork, Normalizer |
         n.done()
         normalizer = Normalizer(mean.astype(np.float64), var.astype(np.float64), eps, clip)
         used |= {"normalizer.mean", "normalizer.var"}
-        del stats
     if extra := sorted(set(arrays) - used):
         raise node.error("model", f"{model} holds arrays the manifest does not describe: {extra}")
     for name in used:

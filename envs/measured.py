@@ -213,13 +213,16 @@ def drive_columns(path: str | Path) -> DriveColumns:
     column: a role given twice, units of two kinds (m and rad), no command, no position or speed."""
     rec = load(path)
     src, signals, scalars = rec.source, dict(rec.signals), dict(rec.scalars)
+    own = {k: k for k in signals}  # the schema's name of each signal -> the file's
     if "qm" in signals:  # the EMPS .mat names
         require(rec, list(EMPS_MAT))
+        own = {EMPS_MAT.get(k, k): k for k in signals}
         signals = {EMPS_MAT.get(k, k): v for k, v in signals.items()}
         scalars = {EMPS_MAT_SCALARS.get(k, k): v for k, v in scalars.items()}
-    names = {"time": "time_s"} if "qm" not in rec.signals else {"time": "t"}
     if "time_s" not in signals:
         raise ConfigError("header", f"no time_s column; the file has {sorted(signals)}", src)
+
+    names = {"time": own["time_s"]}
 
     def one(role: str, prefix: str, units: dict[str, tuple[str, float]]) -> tuple[np.ndarray, str] | None:
         found = [c for c in signals if c.startswith(prefix) and c[len(prefix) :] in units]
@@ -228,12 +231,7 @@ def drive_columns(path: str | Path) -> DriveColumns:
         if not found:
             return None
         unit, factor = units[found[0][len(prefix) :]]
-        raw = (
-            next((k for k, v in EMPS_MAT.items() if v == found[0]), found[0])
-            if "qm" in rec.signals
-            else found[0]
-        )
-        names[role] = raw
+        names[role] = own[found[0]]
         return signals[found[0]] * factor, unit  # a copy, in SI
 
     commands = [c for c in signals if c.startswith("command_") and c[8:] in COMMAND_UNITS]
