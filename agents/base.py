@@ -144,6 +144,7 @@ class PhysicalController(Controller):
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         d = decode_observation(self.sc, obs, trusted=True)  # the env's own observation
+        self.preview = d["preview"]  # r(t_{k+1}) ... r(t_{k+P}), for loops with feed-forward
         u = self.command(d["sensors"][self.sensor], d["reference"])
         return np.array([u / self.sc.action_scale], dtype=np.float32)
 

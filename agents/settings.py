@@ -32,7 +32,8 @@ class FamilySettings:
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
         super().__init_subclass__(**kwargs)
-        FamilySettings.sections.add(cls.SECTION)
+        if "SECTION" in vars(cls):  # an abstract base (PerPlantSettings) declares none
+            FamilySettings.sections.add(cls.SECTION)
 
 
 @cache
@@ -68,3 +69,63 @@ def with_overrides(settings: T, overrides: dict[str, Any]) -> T:
 def knowledge_defaults() -> dict[str, float]:
     """What friction compensators believe about the plant, relative to the nominal preset (knowledge:)."""
     return read(KNOWLEDGE, lambda k: {"static_friction_scale": k.positive("static_friction_scale", 10.0)})
+
+
+@dataclasses.dataclass(frozen=True)
+class Knob:
+    """A tunable design choice of a per-plant settings entry: its range (in the field's unit), whether it
+    is searched on a log scale, and whether it is a whole number. Reading a YAML value checks the range,
+    and `frictiongym tune` searches it."""
+
+    low: float
+    high: float
+    log: bool = False
+    whole: bool = False
+
+    def check(self, node: Node, key: str) -> float | int:
+        """The value of `key` in `node`, within [low, high] (an error naming the key otherwise)."""
+        if self.whole:
+            return node.integer(key, self.low, self.high)
+        return node.number(key, self.low, self.high)
+
+
+P = TypeVar("P")
+
+
+class PerPlantSettings(FamilySettings):
+    """A family whose design choices are one entry per plant preset (controllers.yaml `<SECTION>.<plant>`),
+    each a frozen dataclass (ENTRY) whose fields are all Knobs (KNOBS: field -> Knob, units in the field's
+    docstring). Tuning replaces a plant's entry (`replaced`); a family reads its plant's entry at reset."""
+
+    ENTRY: ClassVar[type]
+    KNOBS: ClassVar[dict[str, Knob]]
+    plants: dict[str, Any]
+
+    @classmethod
+    def read_section(cls, s: Node) -> dict[str, Any]:
+        """Every plant's entry of a section, each field checked against its knob."""
+        out = {}
+        for plant in list(s.keys()):
+            p = s.section(plant)
+            out[plant] = cls.ENTRY(**{k: knob.check(p, k) for k, knob in cls.KNOBS.items()})
+            p.done()
+        return out
+
+    def of(self, plant: str) -> Any:
+        """The entry of a plant preset (an error naming the section and the plants it has)."""
+        if plant not in self.plants:
+            raise ConfigError(
+                f"{self.SECTION}.{plant}", f"no settings for this plant; {FILE} has {sorted(self.plants)}"
+            )
+        return self.plants[plant]
+
+    def replaced(self, plant: str, values: dict[str, Any]) -> Any:
+        """These settings with a plant's entry's fields replaced (tuned values), each within its knob."""
+        for key, v in values.items():
+            knob = self.KNOBS.get(key)
+            if knob is None:
+                raise ConfigError(key, f"not a setting of {self.SECTION}; allowed: {sorted(self.KNOBS)}")
+            if not (knob.low <= v <= knob.high) or (knob.whole and v != int(v)):
+                raise ConfigError(f"{self.SECTION}.{plant}.{key}", f"{v!r} outside [{knob.low}, {knob.high}]")
+        entry = dataclasses.replace(self.of(plant), **values)
+        return dataclasses.replace(self, plants={**self.plants, plant: entry})

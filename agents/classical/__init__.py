@@ -5,8 +5,12 @@ on the PD or the PID loop (feedforward.py); and, not baselines, residual bases s
 reference's speed or by the task (scheduled.py). Each family's settings object reads its defaults from
 configs/controllers.yaml once; constructor arguments override."""
 
+from .adaptive import AdaptiveCoulomb, AdaptiveSettings
+from .disturbance_observer import DisturbanceObserver, ModelFFDisturbanceObserver, ObserverSettings
 from .feedforward import CoulombViscousFF, PIDCoulombViscousFF
+from .iterative import IterativeLearning, LearningSettings
 from .lugre_observer import LuGreObserver, LuGreObserverSettings
+from .model_feedforward import CascadeModelFF, CascadeSettings, FeedForwardSettings, PIDModelFF
 from .pid import PD, PID, LabPD, PIDSettings, design_pid
 from .scheduled import (
     SpeedScheduled,
@@ -21,11 +25,22 @@ __all__ = [
     "PD",
     "PID",
     "RDFC",
+    "AdaptiveCoulomb",
+    "AdaptiveSettings",
+    "CascadeModelFF",
+    "CascadeSettings",
     "CoulombViscousFF",
+    "DisturbanceObserver",
+    "FeedForwardSettings",
+    "IterativeLearning",
     "LabPD",
+    "LearningSettings",
     "LuGreObserver",
     "LuGreObserverSettings",
+    "ModelFFDisturbanceObserver",
+    "ObserverSettings",
     "PIDCoulombViscousFF",
+    "PIDModelFF",
     "PIDSettings",
     "RDFCSettings",
     "ResidualBaseSettings",

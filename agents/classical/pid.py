@@ -152,11 +152,16 @@ class PID(PhysicalController):
         return 0.0 if self.y_prev is None else (y - self.y_prev) / self.h
 
     def command(self, y: float, r: float) -> float:
+        return self.feedback(y, r, 0.0)
+
+    def feedback(self, y: float, r: float, offset: float) -> float:
+        """The loop's command plus `offset` (a feed-forward, command units), saturated; the integrator's
+        anti-windup judges the applied total (0.0 added to a float leaves it unchanged: PID alone)."""
         g, h, limit = self.gains, self.h, self.sc.action_scale
         e = r - y
         d = -self.loop_velocity(y)
         self.y_prev = y
-        u = g.kp * e + self.i_term + g.kd * d
+        u = g.kp * e + self.i_term + g.kd * d + offset
         if abs(u) < limit or u * e < 0:
             self.i_term += self.share * g.ki * e * h  # 1.0·x is x: alone, bit for bit
         return max(-limit, min(limit, u))
