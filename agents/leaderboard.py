@@ -49,6 +49,21 @@ def entry(name: str) -> bool:
     return name not in REFERENCES
 
 
+def chatters(row: dict, unc: dict | None, band: float) -> str:
+    """Why a classical row is not a result on its scenario ("" if it is one): like any compensator, it
+    may spend at most MAX_EFFORT_RATIO times the uncompensated loop's effort_rms and add no limit cycle
+    (limit_cycle_amp at most 1.2x the loop's plus the settling band), the rule learned entries meet
+    against the best classical row (stats.why_not_beats). Only such a row can be the scenario's baseline."""
+    if unc is None or row is unc:
+        return ""
+    m, mu = row["metrics"], unc["metrics"]
+    effort = m["effort_rms"][0] / mu["effort_rms"][0] if mu["effort_rms"][0] > 0 else math.inf
+    why = why_not_beats(
+        {"diff_lo": -1.0, "diff_hi": -1.0}, effort, m["limit_cycle_amp"][0], mu["limit_cycle_amp"][0], band
+    )
+    return "; ".join(why)
+
+
 def per_seed(rs: list[EpisodeResult], metric: str) -> dict[int, float]:
     """{seed: metric} of one controller's episodes on one scenario."""
     return {r.seed: r.metrics[metric] for r in rs}
@@ -79,7 +94,10 @@ def summarize(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> d
                 }
             )
         rows.sort(key=lambda r: r["main"][0] if math.isfinite(r["main"][0]) else math.inf)
-        best = next((r["controller"] for r in rows if classical(r["controller"])), None)
+        unc = next((r for r in rows if r["uncompensated"]), None)
+        for r in rows:
+            r["chatters"] = chatters(r, unc, scenarios[sc].settle_band) if classical(r["controller"]) else ""
+        best = next((r["controller"] for r in rows if classical(r["controller"]) and not r["chatters"]), None)
         for r in rows:
             r["baseline"] = best
             r["vs_baseline"] = None

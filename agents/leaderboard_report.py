@@ -19,6 +19,7 @@ from frictiongym.envs.scenario import Scenario
 
 from . import registry, stats
 from .base import ZERO
+from .stats import MAX_EFFORT_RATIO
 
 if TYPE_CHECKING:
     from .leaderboard import Board
@@ -107,7 +108,9 @@ def markdown(board: Board) -> str:
         "",
         "`vs baseline`: the mean per-episode difference of the main metric against the scenario's best",
         "classical baseline (negative = better), its 95 % interval, and the probability that the controller",
-        "beats the baseline on an episode.",
+        "beats the baseline on an episode. The baseline is the best classical row that is a result: one",
+        f"spending more than {MAX_EFFORT_RATIO}x the uncompensated loop's effort_rms or adding a limit cycle",
+        "chatters (marked so) and is not one.",
         "",
         "## Per plant",
         "",
@@ -161,6 +164,7 @@ def markdown(board: Board) -> str:
             name = r["controller"]
             name = f"*{name}* (reference)" if r["reference"] else name
             name = f"{name} (uncompensated)" if r["uncompensated"] else name
+            name = f"{name} (chatters: {r['chatters']})" if r.get("chatters") else name
             lines.append(
                 f"| {name} | {r['episodes']}{div} | {_fmt(r['main'])} | {_fmt(r['g'])} | "
                 f"{_fmt(r['score'])} | " + " | ".join(_fmt(r["metrics"][m]) for m in sec) + f" | {_vs(r)} |"

@@ -58,6 +58,7 @@ from .learned import LearnedPolicy, policy_why_not
 from .limits import Ideal, Oracle
 from .manifest import MANIFEST, Manifest
 from .model_folder import read_policy
+from .tuning import SUFFIX, Tuned, tunable, tuned_entries
 
 ENTRY_POINT_GROUP = "frictiongym.controllers"
 
@@ -81,6 +82,22 @@ BUILTIN: dict[str, Callable[[], Controller]] = {
     "ILC": IterativeLearning,
     "AdaptiveFF": AdaptiveCoulomb,
 }
+
+
+def _tuned_twins() -> dict[str, Callable[[], Controller]]:
+    """`<family>[tuned]` for every family of configs/tuned.yaml (agents/tuning.py): a classical baseline
+    like its family, with the settings tuned on the validation suite."""
+    out: dict[str, Callable[[], Controller]] = {}
+    for family, entries in tuned_entries().items():
+        if family not in BUILTIN or tunable(BUILTIN[family]) is None:
+            raise ConfigError(
+                family, f"configs/tuned.yaml: not a tunable built-in family; one of {list(BUILTIN)}"
+            )
+        out[family + SUFFIX] = partial(Tuned, family, BUILTIN[family], entries)
+    return out
+
+
+BUILTIN.update(_tuned_twins())
 
 
 def builtin(name: str) -> Controller:

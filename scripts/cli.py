@@ -21,6 +21,7 @@ COMMANDS = {  # subcommand -> module of frictiongym.scripts
     "list": "list_envs",
     "leaderboard": "leaderboard",
     "train": "train",
+    "tune": "tune",
     "sim2real": "sim2real",
     "windows": "windows",
     "identify": "identify",

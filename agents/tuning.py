@@ -1,0 +1,319 @@
+"""Tuning a classical family on the `validation` suite with the learned side's budget, and its tuned twin.
+
+A family that can be tuned declares `tunes = (keyword, settings class)`: the constructor keyword taking
+its per-plant settings (settings.PerPlantSettings) whose knobs (range, log scale, whole numbers) are the
+search space. `tune` searches one plant's entry with Optuna's TPE sampler (seeded; the document's design
+is the first trial, so the result is never worse than it on the objective) under a wall-time budget and a
+trial cap, evaluating `workers` trials at a time in worker processes, on the first `episodes` validation
+episodes of every validation scenario of the plant the family applies to: the episodes that select
+learned models (agents/training/, `validation.episodes`), never `test` or `generalisation`.
+
+The objective is the rule that selects learned models: the geometric mean over the scenarios of the main
+metric relative to the design's (lower is better), plus 1 for every scenario on which the candidate is
+not a result (stats.why_not_beats against the scenario's uncompensated loop on the same episodes: effort
+at most MAX_EFFORT_RATIO times its effort_rms, no new limit cycle) and 100 if an episode diverged.
+
+The tuned values go to configs/tuned.yaml (one entry per family and plant, with its manifest: budget,
+trials, seed, the exact command, commit, version, wall time, objective of the design and of the tuned
+values per scenario), written atomically. The registry lists `<family>[tuned]` for every family there
+(`Tuned`): the family with those entries, on the plants tuned.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from tqdm import tqdm
+
+from frictiongym.envs.config import ConfigError, configs_dir, load_yaml
+from frictiongym.envs.records import atomic_text, package_version
+from frictiongym.envs.scenario import Scenario, load_scenario
+from frictiongym.envs.suites import Episode, load_suite
+
+from . import stats
+from .base import Controller, EpisodeContext
+from .evaluate import EnvCache, EpisodeResult, evaluate
+
+TUNED_FILE = "tuned.yaml"
+SUFFIX = "[tuned]"
+DIVERGED_COST = 100.0
+
+
+def tuned_path() -> Path:
+    """configs/tuned.yaml: the committed tuned settings."""
+    return configs_dir() / TUNED_FILE
+
+
+@cache
+def tuned_entries(path: Path | None = None) -> dict[str, dict[str, dict[str, Any]]]:
+    """{family: {plant: {"values": {...}, "manifest": {...}}}} of a tuned-settings file (none: {})."""
+    path = path or tuned_path()
+    if not path.is_file():
+        return {}
+    data = load_yaml(path) or {}
+    if not isinstance(data, dict):
+        raise ConfigError(str(path), "expected a mapping of family -> plant -> {values, manifest}")
+    for family, plants in data.items():
+        if not isinstance(plants, dict):
+            raise ConfigError(f"{family}", f"expected a mapping of plant -> entry in {path}")
+        for plant, rec in plants.items():
+            if not isinstance(rec, dict) or not isinstance(rec.get("values"), dict):
+                raise ConfigError(f"{family}.{plant}.values", f"missing or not a mapping in {path}")
+    return data
+
+
+def tunable(factory: Callable[[], Controller]) -> tuple[str, Any] | None:
+    """(keyword, settings class) of a family that can be tuned, or None."""
+    cls = factory.func if hasattr(factory, "func") else factory
+    return getattr(cls, "tunes", None)
+
+
+def build(cls: type, values: dict[str, dict[str, Any]]) -> Controller:
+    """The family `cls` with its settings' plant entries replaced by `values` ({plant: {knob: value}})."""
+    keyword, settings_cls = cls.tunes
+    settings = settings_cls.defaults()
+    for plant, v in values.items():
+        settings = settings.replaced(plant, v)
+    return cls(**{keyword: settings})
+
+
+class Tuned(Controller):
+    """A family with its tuned settings (configs/tuned.yaml), defined on the plants it was tuned for."""
+
+    def __init__(self, family: str, cls: type, entries: dict[str, dict[str, Any]]):
+        self.name = family + SUFFIX
+        self.plants = sorted(entries)
+        self.inner = build(cls, {p: e["values"] for p, e in entries.items()})
+        self.sensor_kinds, self.tasks = self.inner.sensor_kinds, self.inner.tasks
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        if scenario.spec.name not in self.plants:
+            return f"not tuned for plant {scenario.spec.name} (configs/{TUNED_FILE} has {self.plants})"
+        return self.inner.why_not(scenario)
+
+    def plant_overrides(self, scenario: Scenario) -> dict:
+        return self.inner.plant_overrides(scenario)
+
+    def reset(self, ctx: EpisodeContext) -> None:
+        self.inner.reset(ctx)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        return self.inner.act(obs)
+
+    def params(self) -> dict[str, Any]:
+        return self.inner.params()
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One evaluated candidate: per scenario its mean main metric, effort_rms and limit_cycle_amp."""
+
+    values: dict[str, Any]
+    main: dict[str, float]
+    effort: dict[str, float]
+    limit_cycle: dict[str, float]
+    diverged: int
+
+
+def summarize(values: dict[str, Any], results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> Trial:
+    """A candidate's per-scenario means over its episodes."""
+
+    def mean(sc: str, metric: str) -> float:
+        return float(np.mean([r.metrics[metric] for r in results if r.scenario == sc]))
+
+    return Trial(
+        values,
+        {sc: mean(sc, s.main_metric) for sc, s in scenarios.items()},
+        {sc: mean(sc, "effort_rms") for sc in scenarios},
+        {sc: mean(sc, "limit_cycle_amp") for sc in scenarios},
+        sum(r.diverged for r in results),
+    )
+
+
+def run_candidate(
+    family: str, plant: str, values: dict[str, Any] | None, episodes: list[Episode]
+) -> list[EpisodeResult]:
+    """The family with one plant's values (None: the design; a registry name when family is a built-in
+    loop) on the episodes, in this process (a worker's job)."""
+    from . import registry
+
+    factory = registry.BUILTIN[family]
+    c = factory() if values is None else build(factory, {plant: values})
+    return evaluate([c], episodes, progress=False)
+
+
+@dataclass(frozen=True)
+class Objective:
+    """The tuning objective against the design and the uncompensated loop (module docstring)."""
+
+    design: Trial
+    loop: Trial
+    bands: dict[str, float]
+
+    def failures(self, t: Trial) -> list[str]:
+        """The scenarios on which the candidate is not a result, with why."""
+        out = []
+        for sc in t.main:
+            effort = t.effort[sc] / self.loop.effort[sc] if self.loop.effort[sc] > 0 else math.inf
+            why = stats.why_not_beats(
+                {"diff_lo": -1.0, "diff_hi": -1.0},
+                effort,
+                t.limit_cycle[sc],
+                self.loop.limit_cycle[sc],
+                self.bands[sc],
+            )
+            if why:
+                out.append(f"{sc}: {'; '.join(why)}")
+        return out
+
+    def cost(self, t: Trial) -> float:
+        if t.diverged or not all(math.isfinite(m) for m in t.main.values()):
+            return DIVERGED_COST
+        ratios = [t.main[sc] / self.design.main[sc] for sc in t.main if self.design.main[sc] > 0]
+        return float(np.exp(np.mean(np.log(np.maximum(ratios, 1e-12))))) + len(self.failures(t))
+
+
+def validation_episodes(family: str, plant: str, episodes: int) -> list[Episode]:
+    """The first `episodes` of every validation scenario of the plant the family applies to."""
+    from . import registry
+
+    c = registry.BUILTIN[family]()
+    out: list[Episode] = []
+    by: dict[str, int] = {}
+    envs = EnvCache()
+    for e in load_suite("validation"):
+        sc = envs.scenario(e)
+        if sc.spec.name == plant and c.applies_to(sc) and by.get(e.scenario, 0) < episodes:
+            by[e.scenario] = by.get(e.scenario, 0) + 1
+            out.append(e)
+    if not out:
+        raise ValueError(f"{family} applies to no validation scenario of plant {plant!r}")
+    return out
+
+
+def tune(
+    family: str,
+    plant: str,
+    budget_s: float,
+    trials: int,
+    seed: int = 0,
+    episodes: int = 10,
+    workers: int = 2,
+    progress: bool = True,
+    log: Callable[[str], None] = print,
+) -> dict[str, Any]:
+    """Search one plant's entry of a family (module docstring); returns {"values", "manifest"}."""
+    import optuna
+
+    from . import registry
+
+    if family not in registry.BUILTIN or tunable(registry.BUILTIN[family]) is None:
+        names = [n for n, f in registry.BUILTIN.items() if tunable(f) is not None]
+        raise ValueError(f"{family!r} cannot be tuned; tunable families: {names}")
+    cls = registry.BUILTIN[family]
+    _, settings_cls = cls.tunes
+    design_values = asdict(settings_cls.defaults().of(plant))
+    eps = validation_episodes(family, plant, episodes)
+    scenarios = {e.scenario: load_scenario(e.scenario) for e in eps}
+    loops = {s.uncompensated for s in scenarios.values()}
+    if len(loops) != 1:
+        raise ValueError(f"the plant's scenarios have several uncompensated loops {sorted(loops)}")
+    t0 = time.monotonic()
+    with ProcessPoolExecutor(workers) as pool:
+        design_f = pool.submit(run_candidate, family, plant, None, eps)
+        loop_f = pool.submit(run_candidate, loops.pop(), plant, None, eps)
+        design = summarize(design_values, design_f.result(), scenarios)
+        loop = summarize({}, loop_f.result(), scenarios)
+        objective = Objective(design, loop, {sc: s.settle_band for sc, s in scenarios.items()})
+        study = optuna.create_study(sampler=optuna.samplers.TPESampler(seed=seed))
+        optuna.logging.set_verbosity(optuna.logging.WARNING)
+        knobs = settings_cls.KNOBS
+        best, best_cost, done = design, objective.cost(design), 1
+        log(f"{family} on {plant}: {len(eps)} validation episodes, design cost {best_cost:.4f}")
+        bar = tqdm(total=trials, desc=f"tune {family} {plant}", unit="trial", disable=not progress)
+        bar.update(1)
+        while done < trials and time.monotonic() - t0 < budget_s:
+            batch = [study.ask() for _ in range(min(workers, trials - done))]
+            cands = [_suggest(tr, knobs) for tr in batch]
+            futures = [pool.submit(run_candidate, family, plant, v, eps) for v in cands]
+            for tr, v, f in zip(batch, cands, futures, strict=True):
+                t = summarize(v, f.result(), scenarios)
+                cost = objective.cost(t)
+                study.tell(tr, cost)
+                if cost < best_cost:
+                    best, best_cost = t, cost
+            done += len(batch)
+            bar.update(len(batch))
+            bar.set_postfix(best=f"{best_cost:.4f}")
+        bar.close()
+    wall = time.monotonic() - t0
+    manifest = {
+        "family": family,
+        "plant": plant,
+        "settings_section": settings_cls.SECTION,
+        "design_values": design_values,
+        "sampler": f"optuna {optuna.__version__} TPESampler(seed={seed}); the design is trial 0",
+        "budget_s": budget_s,
+        "trials_cap": trials,
+        "trials": done,
+        "wall_s": round(wall, 1),
+        "workers": workers,
+        "validation": {sc: [e.seed for e in eps if e.scenario == sc] for sc in scenarios},
+        "objective": {
+            "rule": "geometric mean of main metric / design's + 1 per scenario that is not a result",
+            "design": round(objective.cost(design), 6),
+            "tuned": round(best_cost, 6),
+            "design_main": design.main,
+            "tuned_main": best.main,
+            "not_a_result_design": objective.failures(design),
+            "not_a_result_tuned": objective.failures(best),
+        },
+        "command": f"frictiongym tune {family!r} --plant {plant} --budget-min {budget_s / 60:g} "
+        f"--trials {trials} --seed {seed} --episodes {episodes} --workers {workers}",
+        "version": package_version(),
+        "commit": _commit(),
+    }
+    design_cost = objective.cost(design)
+    log(f"{family} on {plant}: {done} trials in {wall:.0f} s, cost {design_cost:.4f} -> {best_cost:.4f}")
+    return {"values": {k: _plain(v) for k, v in best.values.items()}, "manifest": manifest}
+
+
+def _suggest(trial: Any, knobs: dict[str, Any]) -> dict[str, Any]:
+    """A candidate from the knobs' ranges."""
+    out: dict[str, Any] = {}
+    for name, k in knobs.items():
+        if k.whole:
+            out[name] = trial.suggest_int(name, int(k.low), int(k.high))
+        else:
+            low = max(k.low, 1e-12) if k.log else k.low
+            out[name] = trial.suggest_float(name, low, k.high, log=k.log)
+    return out
+
+
+def _plain(v: Any) -> Any:
+    return int(v) if isinstance(v, int | np.integer) else float(v)
+
+
+def _commit() -> str:
+    from .engine import provenance
+
+    return provenance()["git_commit"]
+
+
+def write_tuned(path: Path, family: str, plant: str, entry: dict[str, Any]) -> None:
+    """Merge one family's plant entry into the tuned-settings file, atomically."""
+    data = dict(tuned_entries.__wrapped__(path)) if path.is_file() else {}
+    data.setdefault(family, {})[plant] = entry
+    header = (
+        "# Tuned classical settings (agents/tuning.py, `frictiongym tune`); each entry's manifest says how.\n"
+    )
+    atomic_text(path, header + yaml.safe_dump(data, sort_keys=True, allow_unicode=True, width=100))
