@@ -55,6 +55,7 @@ FIELDS = (  # episodes.csv's columns: the job's identity (Job.key), the result, 
     *METRIC_NAMES,
     "score",
     "g",
+    "g_tracking",
     "controller_params",
     "env_id",
     "package_version",
@@ -333,6 +334,7 @@ def csv_fields(r: EpisodeResult) -> dict[str, Any]:
         **r.metrics,
         "score": r.score,
         "g": r.g,
+        "g_tracking": r.g_tracking,
         "controller_params": r.controller_params,
         "env_id": r.env_id,
         **r.provenance,
@@ -357,6 +359,7 @@ def parse_row(row: dict[str, str]) -> EpisodeResult:
         diverged=_flag(row["diverged"], "diverged"),
         score=float(row["score"] or "nan"),  # empty in unscored rows written by earlier versions (a run
         g=float(row["g"] or "nan"),  # resumed across the change); written as nan now
+        g_tracking=float(row["g_tracking"] or "nan"),
         randomize=_flag(row["randomize"], "randomize"),
         params=row["params"],
         controller_params=row["controller_params"],

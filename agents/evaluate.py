@@ -36,6 +36,7 @@ class EpisodeResult:
     log: dict[str, np.ndarray] | None = None
     score: float = math.nan  # 1 - m / m_Zero of the scenario's main metric m
     g: float = math.nan  # the friction penalty removed on the main metric (stats.limit_score)
+    g_tracking: float = math.nan  # the same against the tracking limit (the TrackingLimit row)
     randomize: bool = False  # the episode's randomisation flag
     params: str = ""  # the episode's pinned parameters as sorted JSON ("" = none): params_text
     controller_params: str = "{}"  # the controller's params() as sorted JSON

@@ -5,6 +5,10 @@ Each scenario declares its uncompensated loop (`benchmark.uncompensated`, e.g. P
 - `Ideal`: that loop on the friction-free twin of the same episode (scenario key nonlinear_friction
   false): every draw the same, the Coulomb, static, Stribeck and presliding friction and the asymmetry
   bias removed; the viscous term stays, it is part of the linear plant the loop is designed on.
+- `TrackingLimit`: the friction-free twin under the plant's best linear two-degree-of-freedom loop (model
+  feed-forward plus the loop): how well the drive could track with no friction at all and a servo
+  engineer's linear design; `Ideal` only removes the friction under the uncompensated loop, so a
+  controller with feed-forward can read g > 1 there without removing any friction.
 - `Oracle`: that loop plus the true nonlinear friction torque of the episode, read at each control
   instant and held over the period (through the drive's own delay): a perfect friction observer with the
   loop's own sampling, reflected to the drive joint through the belt ratios and divided by the episode's
@@ -64,6 +68,31 @@ class Ideal(LimitReference):
     """The uncompensated loop on the friction-free twin of the episode (module docstring)."""
 
     name: ClassVar[str] = "Ideal"
+
+    def scenario_overrides(self) -> dict:
+        return {"nonlinear_friction": False}
+
+
+class TrackingLimit(LimitReference):
+    """The friction-free twin of the episode under the plant's linear two-degree-of-freedom loop: on a
+    tracking task `Cascade+MFF` where it applies, else `PID+MFF`, their model feed-forward without its
+    friction term (the design's settings, agents/classical/model_feedforward.py); on a set-point, where
+    the feed-forward is zero, the uncompensated loop (as Ideal)."""
+
+    name: ClassVar[str] = "TrackingLimit"
+    LOOPS: ClassVar[tuple[str, ...]] = ("Cascade+MFF", "PID+MFF")
+
+    def __init__(self, make_loop: Callable[[str], Controller], make_linear: Callable[[str], Controller]):
+        super().__init__(make_loop)
+        self._make_linear = make_linear
+
+    def loop_of(self, scenario: Scenario) -> Controller:
+        for name in self.LOOPS:
+            if name not in self._loops:
+                self._loops[name] = self._make_linear(name)
+            if self._loops[name].applies_to(scenario):
+                return self._loops[name]
+        return super().loop_of(scenario)
 
     def scenario_overrides(self) -> dict:
         return {"nonlinear_friction": False}

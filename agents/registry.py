@@ -42,6 +42,7 @@ from .classical import (
     CascadeModelFF,
     CoulombViscousFF,
     DisturbanceObserver,
+    FeedForwardSettings,
     IterativeLearning,
     LabPD,
     LuGreObserver,
@@ -55,10 +56,10 @@ from .classical import (
     TaskScheduled,
 )
 from .learned import LearnedPolicy, policy_why_not
-from .limits import Ideal, Oracle
+from .limits import Ideal, Oracle, TrackingLimit
 from .manifest import MANIFEST, Manifest
 from .model_folder import read_policy
-from .tuning import SUFFIX, Tuned, tunable, tuned_entries
+from .tuned import SUFFIX, Tuned, tunable, tuned_entries
 
 ENTRY_POINT_GROUP = "frictiongym.controllers"
 
@@ -142,8 +143,17 @@ def uncompensated_loop(name: str) -> Controller:
 
 # The physical-limit rows (agents/limits.py): with Zero, the references every leaderboard runs on every
 # episode; never ranked as entries, never a baseline.
+def linear_loop(name: str) -> Controller:
+    """A model feed-forward family without its friction term (the TrackingLimit row's loop)."""
+    settings = FeedForwardSettings.defaults()
+    for plant in settings.plants:
+        settings = settings.replaced(plant, {"friction_scale": 0.0})
+    return BUILTIN[name](ff=settings)
+
+
 LIMITS: dict[str, Callable[[], Controller]] = {
     "Ideal": partial(Ideal, uncompensated_loop),
+    "TrackingLimit": partial(TrackingLimit, uncompensated_loop, linear_loop),
     "Oracle": partial(Oracle, uncompensated_loop),
 }
 REFERENCES = (ZERO, *LIMITS)

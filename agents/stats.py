@@ -76,9 +76,10 @@ class Scoring:
 
 
 def attach_scores(results: Sequence[EpisodeResult], scoring: dict[str, Scoring]) -> None:
-    """Fill in each result's score = 1 - m / m_Zero and g, the friction penalty removed (limit_score)
-    between the scenario's uncompensated loop and the Ideal row, on the main metric m and the same
-    episode's reference rows (nan where a reference did not run)."""
+    """Fill in each result's score = 1 - m / m_Zero, g, the friction penalty removed (limit_score)
+    between the scenario's uncompensated loop and the Ideal row, and g_tracking, the same between the
+    loop and the TrackingLimit row, on the main metric m and the same episode's reference rows (nan where
+    a reference did not run)."""
 
     def metric(r: EpisodeResult) -> float:
         return r.metrics[scoring[r.scenario].main_metric]
@@ -89,6 +90,8 @@ def attach_scores(results: Sequence[EpisodeResult], scoring: dict[str, Scoring])
         r.score = normalized_score(m, by.get((ZERO, *e), math.nan))
         m_unc, m_ideal = by.get((s.uncompensated, *e), math.nan), by.get(("Ideal", *e), math.nan)
         r.g = limit_score(m, m_unc, m_ideal, s.limit_score, s.floor)
+        m_limit = by.get(("TrackingLimit", *e), math.nan)
+        r.g_tracking = limit_score(m, m_unc, m_limit, s.limit_score, s.floor)
 
 
 def _finite(x: Sequence[float]) -> np.ndarray:

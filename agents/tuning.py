@@ -15,8 +15,8 @@ at most MAX_EFFORT_RATIO times its effort_rms, no new limit cycle) and 100 if an
 
 The tuned values go to configs/tuned.yaml (one entry per family and plant, with its manifest: budget,
 trials, seed, the exact command, commit, version, wall time, objective of the design and of the tuned
-values per scenario), written atomically. The registry lists `<family>[tuned]` for every family there
-(`Tuned`): the family with those entries, on the plants tuned.
+values per scenario), written atomically; the registry lists `<family>[tuned]` for every family there
+(agents/tuned.py).
 """
 
 from __future__ import annotations
@@ -26,7 +26,6 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
-from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -34,83 +33,16 @@ import numpy as np
 import yaml
 from tqdm import tqdm
 
-from frictiongym.envs.config import ConfigError, configs_dir, load_yaml
 from frictiongym.envs.records import atomic_text, package_version
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.suites import Episode, load_suite
 
-from . import stats
-from .base import Controller, EpisodeContext
+from . import registry, stats
+from .engine import provenance
 from .evaluate import EnvCache, EpisodeResult, evaluate
+from .tuned import build, tunable, tuned_entries
 
-TUNED_FILE = "tuned.yaml"
-SUFFIX = "[tuned]"
 DIVERGED_COST = 100.0
-
-
-def tuned_path() -> Path:
-    """configs/tuned.yaml: the committed tuned settings."""
-    return configs_dir() / TUNED_FILE
-
-
-@cache
-def tuned_entries(path: Path | None = None) -> dict[str, dict[str, dict[str, Any]]]:
-    """{family: {plant: {"values": {...}, "manifest": {...}}}} of a tuned-settings file (none: {})."""
-    path = path or tuned_path()
-    if not path.is_file():
-        return {}
-    data = load_yaml(path) or {}
-    if not isinstance(data, dict):
-        raise ConfigError(str(path), "expected a mapping of family -> plant -> {values, manifest}")
-    for family, plants in data.items():
-        if not isinstance(plants, dict):
-            raise ConfigError(f"{family}", f"expected a mapping of plant -> entry in {path}")
-        for plant, rec in plants.items():
-            if not isinstance(rec, dict) or not isinstance(rec.get("values"), dict):
-                raise ConfigError(f"{family}.{plant}.values", f"missing or not a mapping in {path}")
-    return data
-
-
-def tunable(factory: Callable[[], Controller]) -> tuple[str, Any] | None:
-    """(keyword, settings class) of a family that can be tuned, or None."""
-    cls = factory.func if hasattr(factory, "func") else factory
-    return getattr(cls, "tunes", None)
-
-
-def build(cls: type, values: dict[str, dict[str, Any]]) -> Controller:
-    """The family `cls` with its settings' plant entries replaced by `values` ({plant: {knob: value}})."""
-    keyword, settings_cls = cls.tunes
-    settings = settings_cls.defaults()
-    for plant, v in values.items():
-        settings = settings.replaced(plant, v)
-    return cls(**{keyword: settings})
-
-
-class Tuned(Controller):
-    """A family with its tuned settings (configs/tuned.yaml), defined on the plants it was tuned for."""
-
-    def __init__(self, family: str, cls: type, entries: dict[str, dict[str, Any]]):
-        self.name = family + SUFFIX
-        self.plants = sorted(entries)
-        self.inner = build(cls, {p: e["values"] for p, e in entries.items()})
-        self.sensor_kinds, self.tasks = self.inner.sensor_kinds, self.inner.tasks
-
-    def why_not(self, scenario: Scenario) -> str | None:
-        if scenario.spec.name not in self.plants:
-            return f"not tuned for plant {scenario.spec.name} (configs/{TUNED_FILE} has {self.plants})"
-        return self.inner.why_not(scenario)
-
-    def plant_overrides(self, scenario: Scenario) -> dict:
-        return self.inner.plant_overrides(scenario)
-
-    def reset(self, ctx: EpisodeContext) -> None:
-        self.inner.reset(ctx)
-
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        return self.inner.act(obs)
-
-    def params(self) -> dict[str, Any]:
-        return self.inner.params()
 
 
 @dataclass(frozen=True)
@@ -144,8 +76,6 @@ def run_candidate(
 ) -> list[EpisodeResult]:
     """The family with one plant's values (None: the design; a registry name when family is a built-in
     loop) on the episodes, in this process (a worker's job)."""
-    from . import registry
-
     factory = registry.BUILTIN[family]
     c = factory() if values is None else build(factory, {plant: values})
     return evaluate([c], episodes, progress=False)
@@ -184,8 +114,6 @@ class Objective:
 
 def validation_episodes(family: str, plant: str, episodes: int) -> list[Episode]:
     """The first `episodes` of every validation scenario of the plant the family applies to."""
-    from . import registry
-
     c = registry.BUILTIN[family]()
     out: list[Episode] = []
     by: dict[str, int] = {}
@@ -212,9 +140,7 @@ def tune(
     log: Callable[[str], None] = print,
 ) -> dict[str, Any]:
     """Search one plant's entry of a family (module docstring); returns {"values", "manifest"}."""
-    import optuna
-
-    from . import registry
+    import optuna  # the tuning's own dependency: imported when a tuning runs
 
     if family not in registry.BUILTIN or tunable(registry.BUILTIN[family]) is None:
         names = [n for n, f in registry.BUILTIN.items() if tunable(f) is not None]
@@ -304,8 +230,6 @@ def _plain(v: Any) -> Any:
 
 
 def _commit() -> str:
-    from .engine import provenance
-
     return provenance()["git_commit"]
 
 

@@ -17,7 +17,8 @@ import argparse
 from pathlib import Path
 
 from frictiongym.agents.engine import one_line_errors
-from frictiongym.agents.tuning import tuned_path, write_tuned
+from frictiongym.agents.tuned import tuned_path
+from frictiongym.agents.tuning import tune, write_tuned
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -40,8 +41,6 @@ def main(argv: list[str] | None = None) -> int:
 
 def run(args: argparse.Namespace, out: Path) -> int:
     """Tune and write (main's checked options)."""
-    from frictiongym.agents.tuning import tune
-
     entry = tune(
         args.family, args.plant, args.budget_min * 60, args.trials, args.seed, args.episodes, args.workers
     )
