@@ -34,9 +34,9 @@ def test_same_episodes_for_every_controller_and_sorted_table():
     assert [r["reference"] for r in rows] == [True, True, True, False, False, False, True]
     g = {r["controller"]: r["g"][0] for r in rows}
     assert g["PD"] == 0.0 and g["Ideal"] > 1.0 and g["RDFC"] > 0.5 and g["Zero"] < 0.0  # log score
-    assert rows[2]["vs_baseline"] is None and rows[4]["vs_baseline"]["p_improve"] == 0.0
+    assert rows[3]["vs_baseline"] is None and rows[5]["vs_baseline"]["p_improve"] == 0.0
     # RDFC and PD do not apply to a speed loop; its uncompensated loop is PID
-    assert {r["controller"] for r in table["flexible_speed_step"]} == {"Zero", "Ideal", "Oracle", "PID"}
+    assert {r["controller"] for r in table["flexible_speed_step"]} == {"Zero", "Ideal", "TrackingLimit", "Oracle", "PID"}
 
 
 def test_unknown_controller_is_a_clear_error():
