@@ -27,7 +27,7 @@ import numpy as np
 
 from frictiongym.envs.plants.mjcf import friction_joints
 from frictiongym.envs.plants.params import EpisodeParams
-from frictiongym.envs.scenario import Scenario
+from frictiongym.envs.scenario import TRACKING, Scenario
 
 from .base import Controller, EpisodeContext
 
@@ -76,8 +76,8 @@ class Ideal(LimitReference):
 class TrackingLimit(LimitReference):
     """The friction-free twin of the episode under the plant's linear two-degree-of-freedom loop: on a
     tracking task `Cascade+MFF` where it applies, else `PID+MFF`, their model feed-forward without its
-    friction term (the design's settings, agents/classical/model_feedforward.py); on a set-point, where
-    the feed-forward is zero, the uncompensated loop (as Ideal)."""
+    friction term (the design's settings, agents/classical/model_feedforward.py). Tracking tasks only: at
+    a set-point the feed-forward is zero and the row would be Ideal's, which stands for it there."""
 
     name: ClassVar[str] = "TrackingLimit"
     LOOPS: ClassVar[tuple[str, ...]] = ("Cascade+MFF", "PID+MFF")
@@ -85,6 +85,11 @@ class TrackingLimit(LimitReference):
     def __init__(self, make_loop: Callable[[str], Controller], make_linear: Callable[[str], Controller]):
         super().__init__(make_loop)
         self._make_linear = make_linear
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        if scenario.task != TRACKING:
+            return "a set-point: the tracking limit is the Ideal row"
+        return super().why_not(scenario)
 
     def loop_of(self, scenario: Scenario) -> Controller:
         for name in self.LOOPS:

@@ -90,7 +90,7 @@ def attach_scores(results: Sequence[EpisodeResult], scoring: dict[str, Scoring])
         r.score = normalized_score(m, by.get((ZERO, *e), math.nan))
         m_unc, m_ideal = by.get((s.uncompensated, *e), math.nan), by.get(("Ideal", *e), math.nan)
         r.g = limit_score(m, m_unc, m_ideal, s.limit_score, s.floor)
-        m_limit = by.get(("TrackingLimit", *e), math.nan)
+        m_limit = by.get(("TrackingLimit", *e), m_ideal)  # Ideal stands for it at a set-point
         r.g_tracking = limit_score(m, m_unc, m_limit, s.limit_score, s.floor)
 
 

@@ -9,7 +9,7 @@ convergence at the rate λ = k·b/J (the exponent μ of the paper is 1 here). Th
 |v| exceeds min_speed_per_s in one direction (at rest sgn(v) is undefined and an encoder's velocity is
 its quantisation); elsewhere â holds. â starts at the identified mean Coulomb level and scales the
 friction part of the model feed-forward (model_feedforward.py) on the PID loop, so a level that drifts
-over the episode (the *_drift scenarios) is followed.
+over the episode is followed: it is defined on the scenarios whose friction drifts (the *_drift ones).
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from functools import cache
 from typing import Any, ClassVar
 
 from frictiongym.envs.plants.identified import drive_friction
+from frictiongym.envs.scenario import Scenario
 
 from .. import settings as cfg
 from ..base import EpisodeContext
@@ -68,6 +69,12 @@ class AdaptiveCoulomb(PIDModelFF):
     def __init__(self, adaptive: AdaptiveSettings | None = None, **kw: Any):
         super().__init__(**kw)
         self.adaptive = adaptive or AdaptiveSettings.defaults()
+
+    def why_not(self, scenario: Scenario) -> str | None:
+        reason = super().why_not(scenario)
+        if reason is None and scenario.friction_drift is None:
+            return "defined where the friction drifts within the episode (the scenario's friction_drift)"
+        return reason
 
     def start(self, ctx: EpisodeContext) -> None:
         super().start(ctx)
