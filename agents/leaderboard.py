@@ -89,6 +89,7 @@ def summarize(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> d
                     "diverged": sum(r.diverged for r in rs),
                     "main": stats.mean_ci([r.metrics[main] for r in rs]),
                     "g": stats.mean_ci([r.g for r in rs]),
+                    "g_tracking": stats.mean_ci([r.g_tracking for r in rs]),
                     "score": stats.mean_ci([r.score for r in rs]),
                     "metrics": {m: stats.mean_ci([r.metrics[m] for r in rs]) for m in METRIC_NAMES},
                 }
