@@ -261,10 +261,11 @@ class Board:
 
 
 def write(board: Board, out: Path) -> None:
-    """leaderboard.csv, aggregate.csv, the figures (PNG) and leaderboard.md (linking them) into out, each
-    atomically."""
+    """leaderboard.csv, aggregate.csv, answer.md (the question per plant), the figures (PNG) and
+    leaderboard.md (linking them) into out, each atomically."""
     atomic_text(out / "leaderboard.csv", report.table_csv(board))
     atomic_text(out / "aggregate.csv", report.aggregate_csv(board.aggregate))
+    atomic_text(out / "answer.md", report.answer(board))
     names = [save_figure(fig, out, name) for name, fig in report.figures(board)]
     md = report.markdown(board)
     atomic_text(out / "leaderboard.md", md + "\n" + "".join(f"![{f}]({f})\n" for f in names))

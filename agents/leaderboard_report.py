@@ -178,6 +178,58 @@ def markdown(board: Board) -> str:
     return "\n".join(lines) + "\n"
 
 
+def answer(board: Board) -> str:
+    """answer.md: the suite's question per plant, one row per scenario: the best classical row that is a
+    result (the baseline), the best entry that is not a built-in (a trained model or a plug-in) and
+    whether it beats the baseline (the verdicts' rule), and the two limits, each main metric's mean and
+    95 % interval on the run's episodes."""
+    judged = {(v["scenario"], v["controller"]): v for v in board.verdicts}
+    by_plant: dict[str, list[str]] = {}
+    for sc, rows in board.table.items():
+        s = board.scenarios[sc]
+        by = {r["controller"]: r for r in rows}
+        base = next((r for r in rows if r["controller"] == r["baseline"]), None)
+        other = [r for r in rows if (sc, r["controller"]) in judged]
+        wins = [r for r in other if judged[(sc, r["controller"])]["beats_baseline"]]
+        best = (wins or other or [None])[0]  # rows are sorted by the main metric
+
+        def cell(r: dict | None) -> str:
+            return "n/a" if r is None else f"{r['controller']}: {_fmt(r['main'])}"
+
+        verdict = "n/a"
+        if best is not None:
+            v = judged[(sc, best["controller"])]
+            verdict = "beats it" if v["beats_baseline"] else f"no ({v['why_not']})"
+        count = f"{len(wins)} of {len(other)}" if other else "n/a"
+        limit = by.get("TrackingLimit") or by.get("Ideal")
+        by_plant.setdefault(s.spec.name, []).append(
+            f"| {sc} ({s.main_metric}) | {cell(base)} | {cell(best)} | {verdict} | {count} | "
+            f"{cell(by.get('Ideal'))} | {cell(limit)} |"
+        )
+    lines = [
+        f"# The suite's question on `{board.suite}`",
+        "",
+        "Per scenario: the best classical controller that is a result (no more than "
+        f"{MAX_EFFORT_RATIO}x the uncompensated loop's effort, no new limit cycle), the best learned or "
+        "plug-in entry (the best that beats the baseline, else the best), whether it beats the baseline "
+        "(paired 95 % interval below 0, effort and limit-cycle rule), how many such entries do, and the "
+        "two limits (Ideal: friction removed under the uncompensated loop; TrackingLimit: the friction-free "
+        "twin under the linear two-degree-of-freedom loop, Ideal at a set-point). Mean [95 % interval] of "
+        "the main metric, lower is better.",
+    ]
+    for plant, rows in by_plant.items():
+        lines += [
+            "",
+            f"## {plant}",
+            "",
+            "| scenario (main metric) | best classical | best learned or plug-in | vs the classical | "
+            "entries that beat it | Ideal | tracking limit |",
+            "|---|---|---|---|---|---|---|",
+            *rows,
+        ]
+    return "\n".join(lines) + "\n"
+
+
 def table_csv(board: Board) -> str:
     """leaderboard.csv, the tables: one row per (scenario, controller): main metric, g and score (mean, lo,
     hi), the paired comparison against the baseline, and every metric (mean, lo, hi)."""
