@@ -8,9 +8,11 @@
 Episodes run as jobs on N worker processes (default: every core) and land in OUT/episodes.csv as they
 finish; rerunning with the same options and --out resumes, and other options into the same --out are
 refused. Every episode also runs the reference rows (Zero, Ideal: the scenario's uncompensated loop
-without the nonlinear friction, Oracle: that loop plus the true friction torque) and the uncompensated
-loop. Then prints one table per scenario and writes leaderboard.md, leaderboard.csv, aggregate.csv (the
-per-plant aggregates of g over equal sets of scenarios) and PNG plots.
+without the nonlinear friction, TrackingLimit: the friction-free twin under the linear two-degree-of-
+freedom loop, on tracking scenarios, Oracle: the loop plus the true friction torque) and the
+uncompensated loop. Then prints one table per scenario and writes leaderboard.md, leaderboard.csv,
+aggregate.csv (the per-plant aggregates of g over equal sets of scenarios), answer.md (the suite's
+question per plant) and PNG plots.
 """
 
 from __future__ import annotations

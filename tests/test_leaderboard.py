@@ -75,6 +75,8 @@ def test_script_writes_markdown_csv_and_plots(tmp_path):
     agg = list(csv.DictReader((tmp_path / "aggregate.csv").read_text().splitlines()))
     assert {r["plant"] for r in agg} >= {"kang_robot", "m220"}
     assert (tmp_path / "response_kang_regulation_20deg.png").stat().st_size > 5000
+    answer = (tmp_path / "answer.md").read_text()  # the question per plant, a row per scenario
+    assert "## kang_robot" in answer and "| kang_regulation_20deg (final_error) | " in answer
 
 
 @pytest.mark.slow
