@@ -34,7 +34,8 @@ def test_same_episodes_for_every_controller_and_sorted_table():
     assert rows[2]["vs_baseline"] is None and rows[4]["vs_baseline"]["p_improve"] == 0.0
     # RDFC and PD do not apply to a speed loop; its uncompensated loop is PID; a tracking scenario has the
     # tracking limit
-    assert {r["controller"] for r in table["flexible_speed_step"]} == {"Zero", "Ideal", "TrackingLimit", "Oracle", "PID"}
+    assert {r["controller"] for r in table["flexible_speed_step"]} == {
+        "Zero", "Ideal", "TrackingLimit", "Oracle", "PID"}
 
 
 def test_unknown_controller_is_a_clear_error():
