@@ -37,6 +37,22 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
+def wait_until_bound(address: str, timeout_s: float = 120.0) -> None:
+    """Return once a process has bound the UDP port (listed in Linux's /proc/net/udp; looking, not
+    binding, so the front end never finds the port taken): it has finished importing and is in its loop,
+    however loaded the machine is."""
+    port = f":{int(address.rsplit(':', 1)[1]):04X}"  # local_address is HOST:PORT in hex
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if any(
+            line.split()[1].endswith(port)
+            for line in Path("/proc/net/udp").read_text().splitlines()[1:]
+        ):
+            return
+        time.sleep(0.05)
+    raise TimeoutError(f"nothing bound {address} within {timeout_s} s")
+
+
 @pytest.fixture(scope="module")
 def lab_pd(tmp_path_factory) -> Path:
     """The EMPS's lab PD exported for its tracking scenario (1 kHz)."""
@@ -195,7 +211,8 @@ def test_ctrl_c_stops_the_command_line_loop_cleanly(lab_pd, tmp_path):
         env=env,
     )
     del cli
-    time.sleep(3.0)
+    wait_until_bound(ctrl)  # run-drive listens there once imported: a SIGINT before would hit the imports
+    time.sleep(1.0)  # > 100 periods at 1 kHz
     run.send_signal(signal.SIGINT)
     out, _ = run.communicate(timeout=30)
     figures = json.loads(out)
