@@ -59,17 +59,24 @@ def build(cls: type, values: dict[str, dict[str, Any]]) -> Controller:
 
 
 class Tuned(Controller):
-    """A family with its tuned settings (configs/tuned.yaml), defined on the plants it was tuned for."""
+    """A family with its tuned settings (configs/tuned.yaml), defined on the plants it was tuned for where
+    the tuning changed the design's settings (where it kept them, the row would repeat the family's)."""
 
     def __init__(self, family: str, cls: type, entries: dict[str, dict[str, Any]]):
-        self.name = family + SUFFIX
+        self.name, self.family = family + SUFFIX, family
         self.plants = sorted(entries)
+        self.kept = sorted(
+            p for p, e in entries.items() if e["values"] == e.get("manifest", {}).get("design_values")
+        )
         self.inner = build(cls, {p: e["values"] for p, e in entries.items()})
         self.sensor_kinds, self.tasks = self.inner.sensor_kinds, self.inner.tasks
 
     def why_not(self, scenario: Scenario) -> str | None:
-        if scenario.spec.name not in self.plants:
-            return f"not tuned for plant {scenario.spec.name} (configs/{TUNED_FILE} has {self.plants})"
+        plant = scenario.spec.name
+        if plant not in self.plants:
+            return f"not tuned for plant {plant} (configs/{TUNED_FILE} has {self.plants})"
+        if plant in self.kept:
+            return f"its tuning on {plant} kept the design's settings: the row is {self.family}'s"
         return self.inner.why_not(scenario)
 
     def plant_overrides(self, scenario: Scenario) -> dict:

@@ -64,7 +64,8 @@ def test_script_writes_markdown_csv_and_plots(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert "## kang_regulation_20deg" in proc.stdout
     rows = list(csv.DictReader((tmp_path / "leaderboard.csv").read_text().splitlines()))
-    assert {r["controller"] for r in rows} == {"Zero", "Ideal", "Oracle", "PD", "PID"}
+    # the two limits come with every run: Ideal/Oracle, and TrackingLimit where a reference is tracked
+    assert {r["controller"] for r in rows} == {"Zero", "Ideal", "Oracle", "TrackingLimit", "PD", "PID"}
     episodes = list(csv.DictReader((tmp_path / "episodes.csv").read_text().splitlines()))
     assert {(r["controller"], r["scenario"]) for r in episodes} >= {
         ("PD", "kang_regulation_20deg"),

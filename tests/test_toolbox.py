@@ -173,6 +173,10 @@ def test_tuned_twin_uses_its_values_and_only_on_its_plants():
     assert "not tuned for plant flexible_servo" in twin.why_not(load_scenario("flexible_speed_reversal"))
     assert twin.why_not(load_scenario("m220_reversal_tracking")) is None
     assert twin.inner.learning.of("m220").lead_steps == 3
+    design = {"learning_gain": 0.5, "lead_steps": 2, "filter_s": 0.05}  # a tuning that kept the design
+    entry = {"values": design, "manifest": {"design_values": design}}
+    kept = Tuned("ILC", IterativeLearning, {"m220": entry})
+    assert "kept the design's settings" in kept.why_not(load_scenario("m220_reversal_tracking"))
     bad = {"m220": {"values": {"learning_gain": 7.0}}}
     with pytest.raises(ConfigError, match="learning_gain"):
         Tuned("ILC", IterativeLearning, bad)
