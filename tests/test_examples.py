@@ -13,7 +13,8 @@ from conftest import load_script
 
 from frictiongym.agents import leaderboard, registry
 from frictiongym.agents.classical import PID
-from frictiongym.envs.suites import Episode
+from frictiongym.envs.scenario import TRACKING, load_scenario
+from frictiongym.envs.suites import Episode, load_suite
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "smooth_coulomb_pid.py"
@@ -73,3 +74,24 @@ def test_a_bad_spec_is_one_line_naming_it(spec, why):
     with pytest.raises(ValueError, match=why) as e:
         registry.entries([spec])
     assert spec in str(e.value) and "\n" not in str(e.value)
+
+
+@pytest.mark.slow
+def test_no_tracking_scenario_leaves_the_best_classical_behind_a_naive_feed_forward():
+    """Issue 58's yardstick (examples/naive_feedforward.py: PID+FF plus the rigid model's J·r̈ + c·ṙ,
+    untuned) on every tracking scenario of the default and generalisation suites where it runs, on 3
+    seeds outside every suite's range (no run trained, tuned or selected on them): it never beats the
+    scenario's best classical baseline by the rule every entry meets (a paired 95 % interval below 0,
+    within the effort rule, no new limit cycle)."""
+    naive = f"{ROOT / 'examples' / 'naive_feedforward.py'}:NaiveFeedForward"
+    suites = [*load_suite("default"), *load_suite("generalisation")]
+    tracking = [n for n in dict.fromkeys(e.scenario for e in suites) if load_scenario(n).task == TRACKING]
+    episodes = [Episode(n, s, True) for n in tracking for s in (6000, 6001, 6002)]
+    classical = [n for n in registry.BUILTIN if n != "Zero"]
+    _, table = leaderboard.run("inline", [*classical, naive], None, False, 2, episodes)
+    mine = leaderboard.verdicts(table, {n: load_scenario(n) for n in table})
+    assert {v["controller"] for v in mine} == {"NaiveFF"}
+    for v in mine:
+        assert not v["beats_baseline"], (v["scenario"], v["baseline"], v["vs_baseline"])
+    # it runs wherever a position is tracked (Kang's robot, the M220, the EMPS), not on speed loops
+    assert len(mine) == sum(load_scenario(n).spec.name != "flexible_servo" for n in tracking) == 22
