@@ -19,13 +19,14 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from dataclasses import asdict, dataclass
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from frictiongym.envs.metrics import METRIC_NAMES
-from frictiongym.envs.records import atomic_text
+from frictiongym.envs.records import atomic_text, command_line, git_commit, package_version
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.suites import Episode, load_suite, suite_names
 
@@ -33,6 +34,7 @@ from . import engine, registry, stats
 from . import leaderboard_report as report
 from .evaluate import EnvCache, EpisodeResult, run_episode
 from .figures import save_figure
+from .leaderboard_page import page
 from .stats import MAX_EFFORT_RATIO, why_not_beats
 
 REFERENCES = registry.REFERENCES  # Zero, Ideal, Oracle: run on every episode, never ranked
@@ -230,19 +232,29 @@ def with_logs(
 
 def responses(
     results: list[EpisodeResult],
+    table: dict[str, list[dict]],
     scenarios: dict[str, Scenario],
     randomize: dict[str, bool],
     models: tuple[str, ...] = (),
-) -> dict[str, tuple[EpisodeResult, EpisodeResult]]:
-    """Per scenario, its best and worst episode by the main metric (over every row), re-run with logs."""
+) -> dict[str, list[EpisodeResult]]:
+    """Per scenario, the leading entry (lowest mean main metric) on its median episode, beside the
+    uncompensated loop and Ideal (that loop without friction) on the same seed, re-run with logs: what
+    the entry does against what it improves on and the friction-free reference."""
+    by: dict[tuple[str, str], dict[int, EpisodeResult]] = defaultdict(dict)
+    for r in results:
+        by[r.scenario, r.controller][r.seed] = r
     out = {}
-    for sc in dict.fromkeys(r.scenario for r in results):  # the tables' order (summarize)
-        main = scenarios[sc].main_metric
-        rs = [r for r in results if r.scenario == sc and math.isfinite(r.metrics[main])]
-        if rs:
-            vals = [r.metrics[main] for r in rs]
-            best, worst = rs[int(np.argmin(vals))], rs[int(np.argmax(vals))]
-            out[sc] = tuple(with_logs([best, worst], randomize[sc], models))
+    for sc, rows in table.items():
+        main, loop = scenarios[sc].main_metric, scenarios[sc].uncompensated
+        lead = next((r["controller"] for r in rows if entry(r["controller"])), None)
+        finite = sorted(
+            (r.metrics[main], seed) for seed, r in by[sc, lead].items() if math.isfinite(r.metrics[main])
+        )
+        if not finite:
+            continue
+        seed = finite[(len(finite) - 1) // 2][1]  # the median episode (the lower one of an even count)
+        picked = [by[sc, name][seed] for name in dict.fromkeys([lead, loop, "Ideal"])]
+        out[sc] = with_logs(picked, randomize[sc], models)
     return out
 
 
@@ -257,18 +269,28 @@ class Board:
     aggregate: list[dict]  # aggregate
     verdicts: list[dict]  # verdicts
     penalties: dict[str, float]  # penalty, per scenario
-    responses: dict[str, tuple[EpisodeResult, EpisodeResult]]  # per scenario: best, worst, with logs
+    responses: dict[str, list[EpisodeResult]]  # per scenario: leading entry, loop, Ideal, with logs
 
 
 def write(board: Board, out: Path) -> None:
-    """leaderboard.csv, aggregate.csv, answer.md (the question per plant), the figures (PNG) and
-    leaderboard.md (linking them) into out, each atomically."""
+    """leaderboard.csv, aggregate.csv, answer.md (the question per plant), the figures (PNG),
+    leaderboard.md (linking them) and index.html (the page: leaderboard_page) into out, each
+    atomically."""
     atomic_text(out / "leaderboard.csv", report.table_csv(board))
     atomic_text(out / "aggregate.csv", report.aggregate_csv(board.aggregate))
     atomic_text(out / "answer.md", report.answer(board))
     names = [save_figure(fig, out, name) for name, fig in report.figures(board)]
     md = report.markdown(board)
     atomic_text(out / "leaderboard.md", md + "\n" + "".join(f"![{f}]({f})\n" for f in names))
+    provenance = {
+        "frictiongym": package_version(),
+        "commit": git_commit()[:12] or "n/a",
+        "written": datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        "command": command_line(),
+        "episodes": f"{len(board.results)} rows",
+    }
+    figures = {f: (out / f).read_bytes() for f in names}
+    atomic_text(out / "index.html", page(board, figures, provenance))
 
 
 def run(
@@ -332,7 +354,7 @@ def summarize_and_write(
             aggregate(results, scenarios),
             verdicts(table, scenarios),
             {sc: penalty(results, s) for sc, s in scenarios.items()},
-            responses(results, scenarios, randomize, models),
+            responses(results, table, scenarios, randomize, models),
         )
         out.mkdir(parents=True, exist_ok=True)
         write(board, out)

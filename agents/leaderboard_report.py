@@ -25,7 +25,6 @@ if TYPE_CHECKING:
     from .leaderboard import Board
 
 REFERENCES = registry.REFERENCES  # Zero, Ideal, Oracle: drawn as references, never ranked
-TAUS = np.linspace(-0.5, 1.5, 201)  # performance-profile thresholds of g
 
 
 def _fmt(ci: tuple[float, float, float]) -> str:
@@ -105,8 +104,9 @@ def markdown(board: Board) -> str:
         "Per scenario: mean and 95 % bootstrap interval over the suite's episodes, sorted by the",
         "scenario's main metric (lower is better; units: the tracked output in rad, m or V, the command in V",
         "or N·m; see docs/envs.md). Reference rows, on the same episodes and never ranked: `Zero` (doing",
-        "nothing), `Ideal` (the uncompensated loop without the nonlinear friction), `Oracle` (the",
-        "uncompensated loop plus the true friction torque, sampled and delayed as the loop is).",
+        "nothing), `Ideal` (the uncompensated loop without the nonlinear friction), `TrackingLimit` (on",
+        "tracking scenarios: the friction-free twin under the linear two-degree-of-freedom loop), `Oracle`",
+        "(the uncompensated loop plus the true friction torque, sampled and delayed as the loop is).",
         "",
         G_MEANING,
         "",
@@ -178,13 +178,13 @@ def markdown(board: Board) -> str:
     return "\n".join(lines) + "\n"
 
 
-def answer(board: Board) -> str:
-    """answer.md: the suite's question per plant, one row per scenario: the best classical row that is a
-    result (the baseline), the best entry that is not a built-in (a trained model or a plug-in) and
-    whether it beats the baseline (the verdicts' rule), and the two limits, each main metric's mean and
-    95 % interval on the run's episodes."""
+def answer_rows(board: Board) -> dict[str, list[dict]]:
+    """The suite's question per plant, a row per scenario: {"scenario": "name (main metric)", "cells":
+    [best classical, best learned or plug-in, verdict, count, Ideal, tracking limit]}, each cell "n/a",
+    a text or (text, the main metric's mean to sort by). The best classical is the baseline (the best
+    classical row that is a result); the best other entry is the best that beats it, else the best."""
     judged = {(v["scenario"], v["controller"]): v for v in board.verdicts}
-    by_plant: dict[str, list[str]] = {}
+    by_plant: dict[str, list[dict]] = {}
     for sc, rows in board.table.items():
         s = board.scenarios[sc]
         by = {r["controller"]: r for r in rows}
@@ -193,8 +193,8 @@ def answer(board: Board) -> str:
         wins = [r for r in other if judged[(sc, r["controller"])]["beats_baseline"]]
         best = (wins or other or [None])[0]  # rows are sorted by the main metric
 
-        def cell(r: dict | None) -> str:
-            return "n/a" if r is None else f"{r['controller']}: {_fmt(r['main'])}"
+        def cell(r: dict | None) -> tuple[str, float] | str:
+            return "n/a" if r is None else (f"{r['controller']}: {_fmt(r['main'])}", r["main"][0])
 
         verdict = "n/a"
         if best is not None:
@@ -202,10 +202,14 @@ def answer(board: Board) -> str:
             verdict = "beats it" if v["beats_baseline"] else f"no ({v['why_not']})"
         count = f"{len(wins)} of {len(other)}" if other else "n/a"
         limit = by.get("TrackingLimit") or by.get("Ideal")
-        by_plant.setdefault(s.spec.name, []).append(
-            f"| {sc} ({s.main_metric}) | {cell(base)} | {cell(best)} | {verdict} | {count} | "
-            f"{cell(by.get('Ideal'))} | {cell(limit)} |"
-        )
+        cells = [cell(base), cell(best), verdict, count, cell(by.get("Ideal")), cell(limit)]
+        by_plant.setdefault(s.spec.name, []).append({"scenario": f"{sc} ({s.main_metric})", "cells": cells})
+    return by_plant
+
+
+def answer(board: Board) -> str:
+    """answer.md: the suite's question per plant (answer_rows), each main metric's mean and 95 % interval
+    on the run's episodes."""
     lines = [
         f"# The suite's question on `{board.suite}`",
         "",
@@ -217,7 +221,7 @@ def answer(board: Board) -> str:
         "twin under the linear two-degree-of-freedom loop, Ideal at a set-point). Mean [95 % interval] of "
         "the main metric, lower is better.",
     ]
-    for plant, rows in by_plant.items():
+    for plant, rows in answer_rows(board).items():
         lines += [
             "",
             f"## {plant}",
@@ -225,8 +229,10 @@ def answer(board: Board) -> str:
             "| scenario (main metric) | best classical | best learned or plug-in | vs the classical | "
             "entries that beat it | Ideal | tracking limit |",
             "|---|---|---|---|---|---|---|",
-            *rows,
         ]
+        for row in rows:
+            cells = [c if isinstance(c, str) else c[0] for c in row["cells"]]
+            lines.append(f"| {row['scenario']} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
@@ -282,74 +288,151 @@ def aggregate_csv(agg: list[dict]) -> str:
     return buf.getvalue()
 
 
+def palette(names: list[str]) -> dict[str, Any]:
+    """A distinct colour per entry (tab20, tab20b, tab20c: 60 before one repeats), grey for references."""
+    from matplotlib import colormaps
+
+    colours = [c for m in ("tab20", "tab20b", "tab20c") for c in colormaps[m].colors]
+    entries = [n for n in names if n not in REFERENCES]
+    return {
+        **{n: colours[i % len(colours)] for i, n in enumerate(entries)},
+        **dict.fromkeys(REFERENCES, "0.35"),
+    }
+
+
+def span(values: Any, marks: tuple[float, ...] = ()) -> tuple[float, float]:
+    """Axis limits set by the bulk of the entries' values (within 3 interquartile ranges of their
+    quartiles) and the marks, padded 5 %: a row far outside, a reference (Zero at g = -17,500) or a
+    broken entry, is drawn at the edge with its value (off_scale), it does not set the axis."""
+    v = np.asarray([x for x in np.ravel(values) if np.isfinite(x)], dtype=float)
+    ends = list(marks) or [0.0, 1.0]
+    if len(v):
+        q1, q3 = np.percentile(v, [25, 75])
+        fence = 3.0 * (q3 - q1)
+        inside = v[(v >= q1 - fence) & (v <= q3 + fence)]
+        ends += [float(inside.min()), float(inside.max())]
+    lo, hi = min(ends), max(ends)
+    pad = 0.05 * (hi - lo) or 0.5
+    return lo - pad, hi + pad
+
+
+def off_scale(ax: Any, x: float, y: float, lim: tuple[float, float]) -> bool:
+    """Mark a value outside the axis at its edge, with its value; whether it was."""
+    if lim[0] <= x <= lim[1] or not np.isfinite(x):
+        return False
+    edge, ha = (lim[0], "left") if x < lim[0] else (lim[1], "right")
+    ax.plot(edge, y, "<" if x < lim[0] else ">", color="0.35", ms=5)
+    ax.annotate(f"{x:.3g} (off scale)", (edge, y), fontsize=6, ha=ha, va="bottom", color="0.35")
+    return True
+
+
+def grid(plt: Any, n: int, ncols: int, width: float, height: float) -> tuple[Any, list[Any]]:
+    """A figure of n panels in rows of ncols (unused cells hidden) and its panels in order."""
+    ncols = min(ncols, n)
+    nrows = math.ceil(n / ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(width * ncols, height * nrows), squeeze=False)
+    flat = list(axes.ravel())
+    for ax in flat[n:]:
+        ax.set_visible(False)
+    return fig, flat[:n]
+
+
 def figures(board: Board) -> Iterator[tuple[str, Any]]:
-    """(file name, matplotlib figure) in leaderboard.md's order: g per scenario (strip plots; 1 - m/m_Zero
-    where g is not scored), the per-plant IQM of g with intervals, the per-plant performance profiles of
-    g, and per scenario the time responses of its best and worst episodes (board.responses). One at a time:
-    the caller saves and closes each before the next is drawn."""
+    """(file name, matplotlib figure) in leaderboard.md's order: per scenario the episodes' g (1 - m/m_Zero
+    where g is not scored) of every row, ranked; the per-plant IQM of g with intervals; the per-plant
+    performance profiles of g; and per scenario the time response of the leading entry against the
+    uncompensated loop and Ideal (board.responses). Axes are set by the entries, never by a reference
+    row; panels sit in a grid. One at a time: the caller saves and closes each before the next."""
     results, table, agg, scenarios = board.results, board.table, board.aggregate, board.scenarios
     plt = pyplot()
+    colour = palette(list(dict.fromkeys(r.controller for r in results)))
+    scores: dict[tuple[str, str], list[float]] = {}
+    for r in results:
+        scored = scenarios[r.scenario].limit_score != "none"
+        scores.setdefault((r.scenario, r.controller), []).append(r.g if scored else r.score)
 
-    ctrls = list(dict.fromkeys(r.controller for r in results))
-    colour = {c: f"C{i % 10}" for i, c in enumerate(ctrls)}
     scs = list(table)
-    fig, axes = plt.subplots(1, len(scs), figsize=(3.2 * len(scs), 3.8), squeeze=False)
-    for ax, sc in zip(axes[0], scs, strict=True):
+    tallest = max(len(rows) for rows in table.values())
+    fig, axes = grid(plt, len(scs), 4, 4.6, 0.17 * tallest + 1.3)
+    for ax, sc in zip(axes, scs, strict=True):
         scored = scenarios[sc].limit_score != "none"
         order = [r["controller"] for r in table[sc] if r["controller"] != ZERO or not scored]
+        points = {c: np.asarray(scores[sc, c], dtype=float) for c in order}
+        lim = span(
+            [x for c in order if c not in REFERENCES for x in points[c]], (0.0, 1.0) if scored else (0.0,)
+        )
         for i, c in enumerate(order):
-            mine = [r for r in results if r.scenario == sc and r.controller == c]
-            s = np.array([r.g if scored else r.score for r in mine])
-            jitter = np.random.default_rng(i).uniform(-0.15, 0.15, len(s))
-            ax.plot(i + jitter, s, "o", ms=3, alpha=0.6, color=colour[c])
-            if np.isfinite(s).any():
-                ax.plot([i - 0.3, i + 0.3], [np.nanmean(s)] * 2, "k-", lw=1.5)
-        ax.set_xticks(range(len(order)), order, rotation=45, ha="right", fontsize=7)
-        for y in (0.0, 1.0) if scored else (0.0,):
-            ax.axhline(y, color="0.6", lw=0.8)
+            s, ref = points[c], c in REFERENCES
+            jitter = np.random.default_rng(i).uniform(-0.2, 0.2, len(s))
+            ax.plot(np.clip(s, *lim), i + jitter, "s" if ref else "o", ms=2.5, alpha=0.6, color=colour[c])
+            mean = float(np.nanmean(s)) if np.isfinite(s).any() else math.nan
+            if not off_scale(ax, mean, i, lim) and math.isfinite(mean):
+                ax.plot([min(max(mean, lim[0]), lim[1])] * 2, [i - 0.35, i + 0.35], "k-", lw=1.5)
+        ax.set_yticks(range(len(order)), order, fontsize=6)
+        ax.invert_yaxis()
+        ax.set_xlim(*lim)
+        for x in (0.0, 1.0) if scored else (0.0,):
+            ax.axvline(x, color="0.6", lw=0.8)
         ax.set_title(sc, fontsize=8)
-        ax.set_ylabel("g (friction penalty removed)" if scored else "1 - m/m_Zero (g not scored)", fontsize=7)
+        ax.set_xlabel("g: friction penalty removed" if scored else "1 - m/m_Zero (g not scored)", fontsize=7)
+        ax.tick_params(axis="x", labelsize=7)
     yield "scores.png", fig
 
     sets = [a for a in agg if a["rows"]]
     if sets:
-        fig, axes = plt.subplots(len(sets), 1, figsize=(6.5, sum(0.3 * len(a["rows"]) + 1.2 for a in sets)),
-                                 squeeze=False)  # fmt: skip
-        for ax, a in zip(axes[:, 0], sets, strict=True):
+        tallest = max(len(a["rows"]) + len(a["references"]) for a in sets)
+        fig, axes = grid(plt, len(sets), 2, 5.2, 0.2 * tallest + 1.3)
+        for ax, a in zip(axes, sets, strict=True):
             rows = a["rows"] + a["references"]
+            lim = span([x for r in a["rows"] for x in r["iqm"]], (0.0, 1.0))
             for i, r in enumerate(rows):
                 m, lo, hi = r["iqm"]
                 ref = r in a["references"]
-                ax.errorbar(m, i, xerr=[[m - lo], [hi - m]], fmt="s" if ref else "o",
-                            color="0.4" if ref else colour[r["controller"]], capsize=3)  # fmt: skip
-            ax.set_yticks(range(len(rows)), [r["controller"] for r in rows], fontsize=7)
+                if off_scale(ax, m, i, lim):
+                    continue
+                style = {"fmt": "s" if ref else "o", "color": colour[r["controller"]], "capsize": 3}
+                ax.errorbar(m, i, xerr=[[m - lo], [hi - m]], **style)
+            ax.set_yticks(range(len(rows)), [r["controller"] for r in rows], fontsize=6)
             ax.invert_yaxis()
+            ax.set_xlim(*lim)
+            ax.axvline(0.0, color="0.6", lw=0.8)
             ax.axvline(1.0, color="0.6", lw=0.8)
-            ax.set_title(f"{a['plant']}: {len(a['scenarios'])} scenario(s)", fontsize=8)
-        axes[-1, 0].set_xlabel("IQM of g (95 % stratified bootstrap)")
+            ax.set_title(f"{a['plant']}: {', '.join(a['scenarios'])}", fontsize=7, wrap=True)
+            ax.set_xlabel("IQM of g (95 % stratified bootstrap); grey squares: references", fontsize=7)
         yield "aggregate_iqm.png", fig
 
-        fig, axes = plt.subplots(1, len(sets), figsize=(4.2 * len(sets), 3.6), squeeze=False)
-        for ax, a in zip(axes[0], sets, strict=True):
+        fig, axes = grid(plt, len(sets), 3, 4.6, 3.8)
+        for ax, a in zip(axes, sets, strict=True):
+            entries = [x for c, g in a["pooled"].items() if c not in REFERENCES for x in g]
+            taus = np.linspace(*span(entries, (0.0, 1.0)), 201)
             for c, g in a["pooled"].items():
                 ref = c in REFERENCES
-                ax.plot(TAUS, stats.performance_profile(g, TAUS), "--" if ref else "-", label=c,
-                        color="0.4" if ref else colour[c], lw=1)  # fmt: skip
-            ax.set(xlabel="g threshold τ", title=f"{a['plant']}: {len(a['scenarios'])} scenario(s)")
-            ax.legend(fontsize=6)
-        axes[0, 0].set_ylabel("fraction of episodes with g > τ")
+                profile = stats.performance_profile(g, taus)
+                ax.plot(taus, profile, "--" if ref else "-", label=c, color=colour[c], lw=1)
+            ax.set_xlabel("g threshold τ", fontsize=7)
+            ax.set_title(f"{a['plant']}: {', '.join(a['scenarios'])}", fontsize=7, wrap=True)
+            ax.legend(fontsize=5, ncol=2)
+        axes[0].set_ylabel("fraction of episodes with g > τ", fontsize=7)
         yield "performance_profile.png", fig
 
-    for sc, (best, worst) in board.responses.items():
-        main = scenarios[sc].main_metric
-        fig, ax = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
-        for r, style in ((best, "-"), (worst, "--")):
+    for sc, runs in board.responses.items():
+        s = scenarios[sc]
+        unit, cmd = s.output_unit, s.spec.command_unit
+        fig, ax = plt.subplots(3, 1, figsize=(7.5, 6.5), sharex=True)
+        ref = runs[0].log
+        ax[0].plot(ref["t"], ref["reference"], "k:", lw=1, label="reference")
+        for r, style in zip(runs, ("-", "-", "--"), strict=False):
             g = r.log
-            lab = f"{r.controller} seed {r.seed} ({main} {r.metrics[main]:.3g})"
-            ax[0].plot(g["t"], g["output"], style, label=f"output, {'best' if r is best else 'worst'}: {lab}")
-            ax[1].step(g["t"], g["command"], style, where="pre")
-        ax[0].plot(best.log["t"], best.log["reference"], "k:", label="reference")
-        ax[0].set(title=f"{sc}: best and worst episode", ylabel="output")
+            role = " (uncompensated loop)" if r.controller == s.uncompensated and r is not runs[0] else ""
+            label = f"{r.controller}{role}: {s.main_metric} {r.metrics[s.main_metric]:.3g}"
+            c = "0.45" if r.controller == "Ideal" else None
+            ax[0].plot(g["t"], g["output"], style, lw=1.2, color=c, label=label)
+            ax[1].plot(g["t"], g["output"] - g["reference"], style, lw=1, color=c)
+            ax[2].step(g["t"], g["command"], style, lw=1, where="pre", color=c)
+        ax[0].set(
+            title=f"{sc}: the leading entry's median episode, seed {runs[0].seed}", ylabel=f"output ({unit})"
+        )
         ax[0].legend(fontsize=7)
-        ax[1].set(xlabel="t (s)", ylabel="command")
+        ax[1].set(ylabel=f"error ({unit})")
+        ax[2].set(xlabel="t (s)", ylabel=f"command ({cmd})")
         yield f"response_{sc}.png", fig

@@ -255,6 +255,11 @@ class Scenario:
         """REGULATION (a constant reference) or TRACKING (any other)."""
         return REGULATION if self.reference.type == "constant" else TRACKING
 
+    @property
+    def output_unit(self) -> str:
+        """The tracked sensor's unit (rad, m or V): the unit of the reference, the output and the error."""
+        return self.spec.sensor_unit(self.spec.sensor_names[self.tracked_sensor])
+
 
 @dataclass(frozen=True)
 class Limits:

@@ -250,7 +250,7 @@ class ServoEnv(JsonSafeSpec, gym.Env, EzPickle):
 
         g = self.core.episode_log(0)
         sens = self.scenario.spec.sensors[self.scenario.tracked_sensor]
-        unit = "rad" if sens.kind == "encoder" else "V"
+        unit = self.scenario.output_unit
         fig, ax = plt.subplots(3, 1, figsize=(7, 6), sharex=True)
         ax[0].plot(g["t"], g["reference"], "--", label="reference")
         ax[0].plot(g["t"], g["output"], label=f"output ({sens.name}, true)")

@@ -184,3 +184,36 @@ def test_figures_are_drawn_one_at_a_time_each_closed_before_the_next(tmp_path, m
     assert len(open_at_save) == len(list(tmp_path.glob("*.png"))) >= 3  # scores and two responses at least
     assert open_at_save == [1] * len(open_at_save)
     assert plt.get_fignums() == []
+
+
+def test_figures_are_scaled_by_the_entries_and_the_response_shows_the_loop_and_ideal(tmp_path, monkeypatch):
+    """Doing nothing on the M220's reversals scores g ≈ -20 (the friction penalty is small beside the
+    whole error): drawn on the aggregate's axis it would squeeze every entry into one dot near 0-1, so
+    the axis is the entries' and Zero is an off-scale mark with its value. The response figure shows the
+    leading entry beside the uncompensated loop and Ideal on one seed, in the plant's units, and the
+    per-scenario panels sit in a grid of at most 4 columns."""
+    drawn, save_figure = {}, leaderboard.save_figure
+
+    def save(fig, out, name):
+        drawn[name] = fig  # a closed figure keeps its axes
+        return save_figure(fig, out, name)
+
+    monkeypatch.setattr(leaderboard, "save_figure", save)
+    episodes = [Episode(sc, s, True) for sc in ("m220_reversal_tracking", "m220_drift") for s in (5000, 5001)]
+    results, table = leaderboard.run(controllers=["PID+FF"], out=tmp_path, progress=False, episodes=episodes)
+    agg = drawn["aggregate_iqm.png"].axes[0]
+    sets = leaderboard.aggregate(results, {n: load_scenario(n) for n in table})
+    drawn_set = next(a for a in sets if a["rows"])
+    zero_g = next(r["iqm"][0] for r in drawn_set["references"] if r["controller"] == "Zero")
+    assert zero_g < -5 and agg.get_xlim()[0] > zero_g / 2
+    assert any("off scale" in t.get_text() for t in agg.texts)
+    scores = drawn["scores.png"]
+    assert scores.axes[0].get_gridspec().ncols <= 4
+    response = drawn["response_m220_reversal_tracking.png"].axes
+    labels = [line.get_label() for line in response[0].get_lines()]
+    rows = table["m220_reversal_tracking"]
+    lead = next(r["controller"] for r in rows if leaderboard.entry(r["controller"]))
+    assert labels[0] == "reference" and labels[1].startswith(lead + ":")
+    assert any(label.startswith("Ideal:") for label in labels)
+    assert any("(uncompensated loop)" in label for label in labels) or lead == "PID"
+    assert response[0].get_ylabel() == "output (rad)" and response[2].get_ylabel() == "command (V)"

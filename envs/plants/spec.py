@@ -123,6 +123,14 @@ class PlantSpec:
     def joint_index(self, name: str) -> int:
         return [j.name for j in self.joints].index(name)
 
+    def sensor_unit(self, name: str) -> str:
+        """A sensor's output unit, for labels and logs: V for a tachometer, else its joint's position
+        unit (m on a slide, rad on a hinge)."""
+        sensor = self.sensors[self.sensor_names.index(name)]
+        if sensor.kind == "tacho":
+            return "V"
+        return "m" if self.joints[self.joint_index(sensor.joint)].kind == "slide" else "rad"
+
     @cached_property
     def sensor_names(self) -> tuple[str, ...]:
         """The sensors' names in spec order (the observation's order)."""
