@@ -254,8 +254,7 @@ def _write_log(path: Path, sc: Scenario, rows: list[tuple]) -> None:
     """The run as a drive log of the schema (an encoder's position in m or rad; a tachometer's reading is
     logged as the position column's signal in V, for the record)."""
     sensor = sc.spec.sensors[sc.tracked_sensor]
-    joint = next(j for j in sc.spec.joints if j.name == sensor.joint)
-    unit = "m" if joint.kind == "slide" else "rad"  # the tracked joint's position unit
+    unit = sc.spec.joint_unit(sensor.joint)  # the tracked joint's position unit
     gain = {"m": "drive_gain_n_per_v", "rad": "drive_gain_nm_per_v"}[unit]
     head = [
         f"# frictiongym run-drive: {sc.name}, control period {sc.control_period} s, tracked {sensor.kind}",

@@ -11,7 +11,7 @@ import html
 import math
 from typing import TYPE_CHECKING
 
-from .leaderboard_report import G_MEANING, MAX_EFFORT_RATIO, answer_rows
+from .leaderboard_report import ANSWER_HEAD, G_MEANING, MAX_EFFORT_RATIO, answer_rows
 
 if TYPE_CHECKING:
     from .leaderboard import Board
@@ -151,14 +151,12 @@ def page(board: Board, figures: dict[str, bytes], provenance: dict[str, str]) ->
         "Oracle. Click a column's header to sort by it.</p>",
         "<h2 id='question'>The question per plant</h2>",
     ]
-    head = ["scenario (main metric)", "best classical", "best learned or plug-in", "vs the classical",
-            "entries that beat it", "Ideal", "tracking limit"]  # fmt: skip
     for plant, rows in answer_rows(board).items():
         body = []
         for row in rows:
             cells = [f"<td>{_e(row['scenario'])}</td>", *(_answer_cell(c) for c in row["cells"])]
             body.append(f"<tr>{''.join(cells)}</tr>")
-        parts += [f"<h3>{_e(plant)}</h3>", _table(head, body)]
+        parts += [f"<h3>{_e(plant)}</h3>", _table(ANSWER_HEAD, body)]
     parts += _aggregates(board) + _verdicts(board) + _scenarios(board)
     parts.append("<h2 id='figures'>Figures</h2>")
     for name, png in figures.items():

@@ -178,6 +178,10 @@ def markdown(board: Board) -> str:
     return "\n".join(lines) + "\n"
 
 
+ANSWER_HEAD = ["scenario (main metric)", "best classical", "best learned or plug-in", "vs the classical",
+               "entries that beat it", "Ideal", "tracking limit"]  # fmt: skip
+
+
 def answer_rows(board: Board) -> dict[str, list[dict]]:
     """The suite's question per plant, a row per scenario: {"scenario": "name (main metric)", "cells":
     [best classical, best learned or plug-in, verdict, count, Ideal, tracking limit]}, each cell "n/a",
@@ -226,9 +230,8 @@ def answer(board: Board) -> str:
             "",
             f"## {plant}",
             "",
-            "| scenario (main metric) | best classical | best learned or plug-in | vs the classical | "
-            "entries that beat it | Ideal | tracking limit |",
-            "|---|---|---|---|---|---|---|",
+            "| " + " | ".join(ANSWER_HEAD) + " |",
+            "|---" * len(ANSWER_HEAD) + "|",
         ]
         for row in rows:
             cells = [c if isinstance(c, str) else c[0] for c in row["cells"]]

@@ -123,13 +123,15 @@ class PlantSpec:
     def joint_index(self, name: str) -> int:
         return [j.name for j in self.joints].index(name)
 
+    def joint_unit(self, name: str) -> str:
+        """A joint's position unit: m on a slide (a carriage), rad on a hinge."""
+        return "m" if self.joints[self.joint_index(name)].kind == "slide" else "rad"
+
     def sensor_unit(self, name: str) -> str:
         """A sensor's output unit, for labels and logs: V for a tachometer, else its joint's position
-        unit (m on a slide, rad on a hinge)."""
+        unit (joint_unit)."""
         sensor = self.sensors[self.sensor_names.index(name)]
-        if sensor.kind == "tacho":
-            return "V"
-        return "m" if self.joints[self.joint_index(sensor.joint)].kind == "slide" else "rad"
+        return "V" if sensor.kind == "tacho" else self.joint_unit(sensor.joint)
 
     @cached_property
     def sensor_names(self) -> tuple[str, ...]:
