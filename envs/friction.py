@@ -1,6 +1,6 @@
 """Friction parameters and their checks.
 
-LuGre (seed 000 §1.4.6, eq. 1-3): ż = v - σ0·|v|·z/g(v), g(v) = Fc + (Fs - Fc)·exp(-(v/vs)²),
+LuGre (Iurian et al. 2005 §1.4.6, eq. 1-3): ż = v - σ0·|v|·z/g(v), g(v) = Fc + (Fs - Fc)·exp(-(v/vs)²),
 F = σ0·z + σ1·ż + σ2·v. MuJoCo's dcmotor LuGre element is symmetric; direction-dependent levels
 (all three documents have them) are built as symmetric LuGre plus a constant bias torque b
 (a dcmotor cogging term with 0 poles), so the friction torque on the joint is -F + b:
@@ -13,7 +13,7 @@ Exact: Coulomb and static levels of both directions when their Stribeck drops ar
 half the difference of the drops. Not exact: viscous slopes must be equal in both directions, and at
 rest the bias is balanced by the bristles, which shifts the presliding equilibrium by b/σ0 (rad).
 
-Friction structures (a scenario's `friction_model`; seed 000's survey, docs/physics.md "Friction
+Friction structures (a scenario's `friction_model`; Iurian et al. 2005's survey, docs/physics.md "Friction
 structures"). The preset's LuGreParams describe one static curve and one bristle; a structure says which
 native elements carry it on the joint:
 
@@ -29,7 +29,7 @@ native elements carry it on the joint:
                   non-local memory, §1.4.7): element i has a share α_i of the levels and a presliding length
                   r_i·c times LuGre's F_s/σ0; its stiffness and damping are shares of σ0 and σ1 summing to
                   them, so the small-motion stiffness, the damping and the static curve are LuGre's.
-    kang          Kang's stick-slip model (seed 001 eq. 1-4, Karnopp's stick band): one LuGre element whose
+    kang          Kang's stick-slip model (Kang 1998 eq. 1-4, Karnopp's stick band): one LuGre element whose
                   Stribeck velocity is KANG_STICK_BAND times the preset's, so the static level holds within
                   the band and the Coulomb level outside it.
     coulomb       Coulomb + viscous (§1.2.1-1.2.2) by MuJoCo's frictionloss constraint (sticks at rest).
@@ -48,7 +48,7 @@ from .config import ConfigError, nonneg, positive
 
 FRICTION_MODELS = ("lugre", "dahl", "maxwell_slip", "kang", "coulomb", "viscous", "none")
 BRISTLE_MODELS = ("lugre", "dahl", "maxwell_slip", "kang")  # carried by native LuGre elements (dcmotor lugre)
-# Kang's stick-slip model (seed 001 eq. 1-4, after Karnopp 1985): the static level holds within a stick band
+# Kang's stick-slip model (Kang 1998 eq. 1-4, after Karnopp 1985): the static level holds within a stick band
 # of this fraction of the preset's Stribeck velocity (Kang: 0.01 deg/s, a fifth of §6's 0.05 deg/s
 # identification ramp), the Coulomb level outside it
 KANG_STICK_BAND = 0.01
@@ -60,7 +60,8 @@ MAXWELL_SLIP_LENGTHS = (1.0 / 3.0, 1.0, 3.0, 9.0)
 
 
 def stribeck(fc: float, fs: float, vs: float, v: float | np.ndarray) -> float | np.ndarray:
-    """g(v) = Fc + (Fs - Fc)·exp(-(v/vs)²) (N·m), seed 000 eq. (2): levels in N·m, velocities in rad/s."""
+    """g(v) = Fc + (Fs - Fc)·exp(-(v/vs)²) (N·m), Iurian et al. 2005 eq. (2): levels in N·m, velocities in
+    rad/s."""
     return fc + (fs - fc) * np.exp(-((v / vs) ** 2))
 
 
@@ -109,7 +110,7 @@ class LuGreParams:
         }
 
     def g(self, v: float | np.ndarray) -> float | np.ndarray:
-        """Stribeck curve g(v) (N·m), seed 000 eq. (2)."""
+        """Stribeck curve g(v) (N·m), Iurian et al. 2005 eq. (2)."""
         return stribeck(self.fc, self.fs, self.vs, v)
 
     def steady_state(self, v: float) -> float:

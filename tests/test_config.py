@@ -73,7 +73,7 @@ def test_unknown_friction_model_rejected():
 
 def test_unit_helpers_round_trip():
     assert units.rad_to_deg(units.deg_to_rad(6.97)) == pytest.approx(6.97)
-    assert units.rad_per_count(16000) == pytest.approx(math.radians(0.0225))  # seed 000 conversion table
+    assert units.rad_per_count(16000) == pytest.approx(math.radians(0.0225))  # Iurian et al. 2005's table
     assert units.counts_to_rad(units.rad_to_counts(1.2, 16000), 16000) == pytest.approx(1.2)
     # Kang's J = 0.0212 N·m·s²/deg is 1.2147 kg·m²
     assert units.per_deg_to_per_rad(0.0212) == pytest.approx(1.21467, rel=1e-4)

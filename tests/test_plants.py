@@ -1,4 +1,5 @@
-"""Plant models against the documents (seed 000 eq. 22 and §2.2, seed 002 eq. 3.2/3.3, seed 001 eq. 6)."""
+"""Plant models against the documents (Iurian et al. 2005 eq. 22 and §2.2, Wallenborg 1987 eq. 3.2/3.3, Kang
+1998 eq. 6)."""
 
 import math
 
@@ -32,7 +33,7 @@ def test_m220_step_passes_measured_points_and_two_point_method_recovers_a_k():
     ident = two_point_step_id(t, tuple(sim), doc.step_input_v)
     assert ident["a"] == pytest.approx(doc.document_a_per_s, rel=0.05)
     assert ident["k"] == pytest.approx(doc.document_k_counts_per_v_s2, rel=0.05)
-    # the document's own numbers from its own points (seed 000 §2.2)
+    # the document's own numbers from its own points (Iurian et al. 2005 §2.2)
     two = two_point_step_id(t, tuple(y), doc.step_input_v)
     assert two["a"] == pytest.approx(0.512081, rel=1e-5) and two["k"] == pytest.approx(82421.02, rel=1e-5)
 

@@ -35,7 +35,7 @@ def test_sim2real_on_a_tiny_grid(tmp_path):
         float(r["shift"]) for r in rows if r["axis"] == "inertia_scale" and r["controller"] == "PD"
     ) == [1.5]
     pd = {(r["axis"], r["shift"]): float(r["mean"]) for r in rows if r["controller"] == "PD"}
-    # more friction, larger final error of PD (its stick band [θ_L, θ_H] widens, seed 001 eq. 6)
+    # more friction, larger final error of PD (its stick band [θ_L, θ_H] widens, Kang 1998 eq. 6)
     assert pd[("friction_scale", "1.5")] > pd[("friction_scale", "0.5")]
     # the structural axis: every structure on the same episodes; Coulomb + viscous (static level F_c < F_s)
     # narrows PD's stick band

@@ -19,7 +19,7 @@ from frictiongym.envs.step import (
     tacho_reading,
 )
 
-RES = 2 * np.pi / 16000  # rad per line: the M220's encoders (seed 000's conversion table)
+RES = 2 * np.pi / 16000  # rad per line: the M220's encoders (Iurian et al. 2005's conversion table)
 WEIGHTS = {"tracking": 1.0, "tracking_abs": 0.3, "effort": 0.001, "smoothness": 0.01}
 
 

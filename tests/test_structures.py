@@ -1,5 +1,5 @@
-"""Friction structures beyond LuGre (seed 000's survey): Dahl and Maxwell-slip built from native LuGre
-elements, their MuJoCo elements against Radau, the per-joint sums every consumer reads (ground truth,
+"""Friction structures beyond LuGre (Iurian et al. 2005's survey): Dahl and Maxwell-slip built from native
+LuGre elements, their MuJoCo elements against Radau, the per-joint sums every consumer reads (ground truth,
 privileged observation, drift) bit-identical across the single env, the vector env and a copy, and the
 phenomena of §1.3 that follow from their equations."""
 

@@ -1,4 +1,4 @@
-"""Wallenborg's state feedback + observer, designed from the plant parameters, against seed 002."""
+"""Wallenborg's state feedback + observer, designed from the plant parameters, against Wallenborg 1987."""
 
 import numpy as np
 import pytest

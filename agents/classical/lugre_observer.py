@@ -1,5 +1,5 @@
-"""LuGre-observer friction compensation (Canudas de Wit et al. 1995, reference [3] of seed 000) on top of
-the PD (position) / PI (speed) loop of pid.py, acting on the drive joint with the nominal LuGre
+"""LuGre-observer friction compensation (Canudas de Wit et al. 1995, reference [3] of Iurian et al. 2005) on
+top of the PD (position) / PI (speed) loop of pid.py, acting on the drive joint with the nominal LuGre
 parameters of the plant preset."""
 
 from __future__ import annotations

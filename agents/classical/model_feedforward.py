@@ -8,13 +8,13 @@ coupled by belts, the rigid_position_plant of design.py)
     u_ff = (J·r̈ + c·ṙ)/b + Σ_j r_j·(tanh(r_j·ṙ/v_ε)·g_j(r_j·ṙ) - β_j·|tanh(r_j·ṙ/v_ε)|)/b
 
 with J, c the inertia and linear damping reflected to the drive, b the actuator gain, r_j each friction
-joint's speed ratio, g_j its Stribeck curve (seed 000 eq. 2) and β_j its asymmetry bias: the friction
-model's steady state (Coulomb, Stribeck, asymmetry) with a smooth zero-velocity transition of width v_ε in
-place of sgn (a discontinuous sign on the reference's rounding chatters at reversals). On the flexible
-servo (speed tracking on the motor tacho, Wallenborg 1987 eq. 3.1) the inverse is the two-mass one: the
-load's motion under the reference speed ω1_r is simulated (exact zero-order-hold discretisation of the
-shaft and load, its friction from the simulated speed) and the motor torque is
-J1·ω̇1_r + (d1 + d)·ω1_r - d·ω2 - k·(θ2 - θ1) + F1(ω1_r).
+joint's speed ratio, g_j its Stribeck curve (Iurian et al. 2005 eq. 2) and β_j its asymmetry bias: the
+friction model's steady state (Coulomb, Stribeck, asymmetry) with a smooth zero-velocity transition of width
+v_ε in place of sgn (a discontinuous sign on the reference's rounding chatters at reversals). On the flexible
+servo (speed tracking on the motor tacho, Wallenborg 1987 eq. 3.1) the inverse is the two-mass one: the load's
+motion under the reference speed ω1_r is simulated (exact zero-order-hold discretisation of the shaft and
+load, its friction from the simulated speed) and the motor torque is J1·ω̇1_r + (d1 + d)·ω1_r - d·ω2 - k·(θ2 -
+θ1) + F1(ω1_r).
 
 The reference's rate and acceleration are central differences of the previewed samples (r(k+1) from the
 preview), evaluated `lead_steps` periods ahead to cover the drive's delay; without a preview (the flexible

@@ -272,7 +272,7 @@ class IdentifyOptions:
     simulate: str | None = None  # a plant preset: run the identification experiments on its simulation
     seed: int = 0  # the simulated plant's draw (with randomize) and its noise
     randomize: bool = False  # simulate a randomised draw of the plant instead of the nominal preset
-    document: bool = False  # the M220 document's own numbers (seed 000 §2.2-2.3): step or friction
+    document: bool = False  # the M220 document's own numbers (Iurian et al. 2005 §2.2-2.3): step or friction
     breakaway: tuple[Path, float] | None = None  # a breakaway-ramp log and its threshold speed (rad/s)
     presliding: tuple[Path, float, float] | None = None  # a presliding log, amplitude (cu), frequency (Hz)
     step_v: float | None = None  # the step command of a --csv step log (cu)
@@ -316,7 +316,7 @@ def identify(o: IdentifyOptions) -> Identification:
     elif not o.document:
         raise ValueError("give one of --csv, --simulate or --document")
     else:
-        data = f"seed 000 §2.2-2.3 (configs/published/{TABLE})"
+        data = f"Iurian et al. 2005 §2.2-2.3 (configs/published/{TABLE})"
     ident = Identification(data, "", {"kind": o.kind, "data": data}, logs=simulated, truth=truth)
     sections = [f"# Identification ({o.kind}): {data}", ""]
     if o.kind == "step":
@@ -413,7 +413,7 @@ def _plot_document(t: dict[str, np.ndarray], values: dict[str, float], path: Pat
         ax.plot(t[vk], t[uk], "o", label=f"table ({'up' if s > 0 else 'down'})")
         v = np.linspace(0, abs(t[vk]).max(), 50) * s
         ax.plot(v, s * values[c] + values["viscous_per_rad_s"] * rad * v, "-", label="recommended fit")
-    ax.set(xlabel="velocity (counts/s)", ylabel="control (V)", title="seed 000 §2.3")
+    ax.set(xlabel="velocity (counts/s)", ylabel="control (V)", title="Iurian et al. 2005 §2.3")
     ax.legend(fontsize=7)
     save_figure(fig, path.parent, path.name, dpi=90)
 

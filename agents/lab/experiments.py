@@ -1,6 +1,6 @@
-"""Identification experiments run on a simulated plant as a lab would run them on the rig (seed 000 §2.2-2.3,
-generalised): the same sensors (quantised encoders, noisy tachometers), the same sampled command, the
-plant's delay. Each returns a fits.Log, as read from a hardware CSV log.
+"""Identification experiments run on a simulated plant as a lab would run them on the rig (Iurian et al. 2005
+§2.2-2.3, generalised): the same sensors (quantised encoders, noisy tachometers), the same sampled command,
+the plant's delay. Each returns a fits.Log, as read from a hardware CSV log.
 
 - step: open-loop command step v from rest (§2.2).
 - holds: PI velocity control at a list of speeds, both directions, one segment per hold (§2.3).
@@ -106,17 +106,17 @@ class Rig:
 
 
 def step(rig: Rig, v: float, duration_s: float) -> Log:
-    """Open-loop command step v from rest (seed 000 §2.2)."""
+    """Open-loop command step v from rest (Iurian et al. 2005 §2.2)."""
     rig.rest()
     n = round(duration_s / rig.spec.control_period)
     return rig.log(rig.run(lambda k, y: v, n, 0), f"step of {v} {rig.spec.command_unit} for {duration_s} s")
 
 
 def holds(rig: Rig, speeds: Sequence[float], hold_s: float, bandwidth: float | None = None) -> Log:
-    """PI velocity holds (seed 000 §2.3) at each speed (rad/s, signed), one segment each, from rest. The PI
-    is designed on the drive-referred inertia J and gain G: crossover ω_c (default 0.2/h rad/s),
-    k_p = ω_c·J/G, integral time 4/ω_c. Speed is measured from the encoder (position difference over one
-    period) or the tachometer."""
+    """PI velocity holds (Iurian et al. 2005 §2.3) at each speed (rad/s, signed), one segment each, from rest.
+    The PI is designed on the drive-referred inertia J and gain G: crossover ω_c (default 0.2/h rad/s), k_p =
+    ω_c·J/G, integral time 4/ω_c. Speed is measured from the encoder (position difference over one period) or
+    the tachometer."""
     h, g, J = rig.spec.control_period, rig.spec.actuator_gain, rig.inertia()
     wc = bandwidth or 0.2 / h
     kp, ki = wc * J / g, wc * J / g * wc / 4.0

@@ -1,11 +1,11 @@
-"""Friction and plant identification from measured data (seed 000 part 2, generalised), on hardware logs or
-on the simulator: experiment logs and fits with 95 % confidence intervals, whose values fill the plants'
-override (envs/plants/identified.py).
+"""Friction and plant identification from measured data (Iurian et al. 2005 part 2, generalised), on hardware
+logs or on the simulator: experiment logs and fits with 95 % confidence intervals, whose values fill the
+plants' override (envs/plants/identified.py).
 
 Units: time s, angle rad, speed rad/s, command in the plant's command unit (V or N·m, "cu"). Friction is
 identified as the drive-referred steady-state command u_ss(v) that holds a speed v,
 
-    u_ss(v) = sgn(v)·(Fc± + (Fs± - Fc±)·exp(-(v/vs)²)) + V·v        (LuGre's static map, seed 000 eq. 2)
+    u_ss(v) = sgn(v)·(Fc± + (Fs± - Fc±)·exp(-(v/vs)²)) + V·v    (LuGre's static map, Iurian et al. 2005 eq. 2)
 
 per direction: Coulomb levels Fc± and static levels Fs± (cu, magnitudes), Stribeck velocity vs (rad/s),
 lumped viscous slope V (cu·s/rad). σ0 (bristle stiffness) comes from presliding; σ1 from none of these
@@ -162,7 +162,8 @@ def two_point_step_id(t: tuple[float, float], y: tuple[float, float], v: float) 
 
 
 def step_response(t: np.ndarray, k: float, a: float, v: float) -> np.ndarray:
-    """θ(t) of k/(s(s+a)) from rest for a step v at t = 0: α1·t + α2 + α3·e^(-a·t) (seed 000 §2.2)."""
+    """θ(t) of k/(s(s+a)) from rest for a step v at t = 0: α1·t + α2 + α3·e^(-a·t) (Iurian et al. 2005 §2.2).
+    """
     return k * v / a * t - k * v / a**2 * (1.0 - np.exp(-a * t))
 
 
@@ -429,7 +430,8 @@ class FrictionId:
 
 
 def identify_coulomb_viscous(holds_log: Log, min_speed: float = 0.0) -> FrictionId:
-    """Coulomb + viscous per direction (seed 000 §2.3) from the steady holds with |v| >= min_speed."""
+    """Coulomb + viscous per direction (Iurian et al. 2005 §2.3) from the steady holds with |v| >= min_speed.
+    """
     v, u, dropped = steady_points(holds_log)
     sel = np.abs(v) >= min_speed
     pts = split_directions(v[sel], u[sel], 3)

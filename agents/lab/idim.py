@@ -10,12 +10,12 @@ parameters are the least-squares solution of y = Φ·θ (eq. 10), with the descr
 which the published numbers were computed with, so that they are reproduced to their printed digits.
 
 Friction structures (`STRUCTURES`) add columns to [q̈ ...]: the published symmetric (eq. 1-2) and
-asymmetric (eq. 12) models, the Stribeck term of LuGre's static map (seed 000 eq. 2), LuGre's presliding
-(bristle state, seed 000 eq. 1), the simulator's Maxwell-slip presliding (§1.4.7), Kang's stick band (seed
-001 eq. 1-4) and a position-dependent force along the screw. A structure with a
-nonlinear parameter (Stribeck velocity, presliding length) is fitted by profiling the least-squares cost
-over it; its 95 % interval is where N_eff·ln(SSE/SSE_min) <= χ²₁(0.95), and it is resolved by the data
-when that interval is bounded inside the searched range.
+asymmetric (eq. 12) models, the Stribeck term of LuGre's static map (Iurian et al. 2005 eq. 2), LuGre's
+presliding (bristle state, Iurian et al. 2005 eq. 1), the simulator's Maxwell-slip presliding (§1.4.7), Kang's
+stick band (Kang 1998 eq. 1-4) and a position-dependent force along the screw. A structure with a nonlinear
+parameter (Stribeck velocity, presliding length) is fitted by profiling the least-squares cost over it; its 95
+% interval is where N_eff·ln(SSE/SSE_min) <= χ²₁(0.95), and it is resolved by the data when that interval is
+bounded inside the searched range.
 
 Intervals of the linear parameters are t-intervals from the description's standard deviations, widened
 for the residuals' lag-1 autocorrelation ρ (N_eff = N·(1-ρ)/(1+ρ)); the description's own standard
@@ -115,7 +115,7 @@ def states(log: DriveLog, settings: IdimSettings = IdimSettings()) -> States:
 
 # ------------------------------------------------------------------------------------ structures
 def bristle_state(v: np.ndarray, length: float, h: float) -> np.ndarray:
-    """Normalised LuGre bristle deflection s = σ0·z/Fc along a velocity record (seed 000 eq. 1 with
+    """Normalised LuGre bristle deflection s = σ0·z/Fc along a velocity record (Iurian et al. 2005 eq. 1 with
     g = Fc and σ0 = Fc/length): ds/dt = (v - |v|·s)/length, integrated exactly over each sample with v
     held. s -> sign(v) in sliding; after a reversal it takes a travel of about `length` to turn."""
     decay = np.exp(-np.abs(v) * h / length)
@@ -236,7 +236,7 @@ STRUCTURES: dict[str, Structure] = {
             "stribeck_asym",
             ("mass_kg", *ASYM_PARAMS, "stribeck_pos_n", "stribeck_neg_n"),
             lambda s, vs: [s.ddq, *_asym(s), *_stribeck(s, vs)],
-            "eq. (12) plus the Stribeck term of LuGre's static map (seed 000 eq. 2), per direction",
+            "eq. (12) plus the Stribeck term of LuGre's static map (Iurian et al. 2005 eq. 2), per direction",
             "stribeck_velocity_m_s",
             (1e-4, 0.1),
         ),
@@ -244,8 +244,8 @@ STRUCTURES: dict[str, Structure] = {
             "lugre_asym",
             ("mass_kg", *ASYM_PARAMS),
             lambda s, length: [s.ddq, *_lugre(s, length)],
-            "eq. (12) with LuGre's bristle state for sign(v) (seed 000 eq. 1, g = Fc: Dahl's state, §1.4.1; "
-            "the Stribeck part is stribeck_asym's): presliding length Fc/σ0",
+            "eq. (12) with LuGre's bristle state for sign(v) (Iurian et al. 2005 eq. 1, g = Fc: Dahl's "
+            "state, §1.4.1; the Stribeck part is stribeck_asym's): presliding length Fc/σ0",
             "presliding_length_m",
             (1e-7, 1e-3),
         ),
@@ -253,8 +253,8 @@ STRUCTURES: dict[str, Structure] = {
             "maxwell_slip_asym",
             ("mass_kg", *ASYM_PARAMS),
             lambda s, length: [s.ddq, *_maxwell_slip(s, length)],
-            "eq. (12) with the simulator's Maxwell-slip presliding (four elements, seed 000 §1.4.7): "
-            "LuGre-equivalent presliding length",
+            "eq. (12) with the simulator's Maxwell-slip presliding (four elements, Iurian et al. 2005 "
+            "§1.4.7): LuGre-equivalent presliding length",
             "presliding_length_m",
             (1e-7, 1e-3),
         ),
@@ -262,7 +262,7 @@ STRUCTURES: dict[str, Structure] = {
             "kang_asym",
             ("mass_kg", *ASYM_PARAMS, "stick_excess_pos_n", "stick_excess_neg_n"),
             lambda s, _: [s.ddq, *_kang(s)],
-            "seed 001 eq. 1-4 (Kang's stick-slip model): eq. (12) plus the static excess within the "
+            "Kang 1998 eq. 1-4 (Kang's stick-slip model): eq. (12) plus the static excess within the "
             "simulator's stick band",
         ),
         Structure(

@@ -1,6 +1,6 @@
 """Friction validation: each plant's native friction elements in MuJoCo against an independent stiff-ODE
 solution (scipy solve_ivp, Radau) of the same rigid-body + friction equations. For a structure of N
-LuGre elements (friction.elements: LuGre §1.4.6, Dahl §1.4.1, Maxwell-slip §1.4.7 of seed 000):
+LuGre elements (friction.elements: LuGre §1.4.6, Dahl §1.4.1, Maxwell-slip §1.4.7 of Iurian et al. 2005):
 
     J·θ'' = T(t, θ) - Σ_k (σ0k·z_k + σ1k·ż_k) - σ2·θ' + b,   ż_k = θ' - σ0k·|θ'|·z_k/g_k(θ')
 

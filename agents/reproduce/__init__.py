@@ -1,9 +1,8 @@
 """Reproduction of the documents' numbers on the simulator: one module per document (iurian2005: the M220,
 kang1998, wallenborg1987, janot2019: the EMPS on its measurements; friction_validation: the friction
-structures' elements against Radau; friction_phenomena: seed 000 §1.3's phenomena by structure), each
-contributing
-sections of rows {id, document, simulated, tolerance, pass, note}, figures and findings computed from the
-results. `scripts/reproduce.py` walks SECTIONS in order. Published numbers live in
+structures' elements against Radau; friction_phenomena: Iurian et al. 2005 §1.3's phenomena by structure),
+each contributing sections of rows {id, document, simulated, tolerance, pass, note}, figures and findings
+computed from the results. `scripts/reproduce.py` walks SECTIONS in order. Published numbers live in
 configs/published/<document>.yaml and the plant presets."""
 
 from __future__ import annotations

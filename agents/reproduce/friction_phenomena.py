@@ -1,7 +1,7 @@
-"""The friction phenomena of seed 000 §1.3, measured on the simulator for each friction structure (on
-Kang's rotor: its preset's static curve and bristles, envs/friction.py's structures), one row per
-structure and phenomenon with a criterion explained by the structure's equations, a figure per phenomenon,
-and the survey-style table of who shows what (the findings).
+"""The friction phenomena of Iurian et al. 2005 §1.3, measured on the simulator for each friction structure
+(on Kang's rotor: its preset's static curve and bristles, envs/friction.py's structures), one row per
+structure and phenomenon with a criterion explained by the structure's equations, a figure per phenomenon, and
+the survey-style table of who shows what (the findings).
 
 - presliding (§1.3.1): torque 0.5·F_s·sin(π t) for 4 s; displacement peak to peak in presliding lengths
   F_s/σ0 and the F-θ loop's area over its bounding box (last cycle).
@@ -292,7 +292,7 @@ def findings(m: Measured, rows_: list[dict]) -> str:
 
     phens = ("presliding", "lag", "breakaway", "stickslip")
     lines = [
-        "## Friction phenomena (seed 000 §1.3) by structure, measured on Kang's rotor",
+        "## Friction phenomena (Iurian et al. 2005 §1.3) by structure, measured on Kang's rotor",
         "",
         "| structure | presliding | frictional lag (1 Hz) | break-away rises as the rate falls "
         "| stick-slip |",

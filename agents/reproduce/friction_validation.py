@@ -1,6 +1,6 @@
 """Each plant's native friction elements against an independent stiff-ODE (Radau) solution of the same
-equations (agents/lab/radau.py), for every bristle structure (seed 000: LuGre §1.4.6, Dahl §1.4.1,
-Maxwell-slip §1.4.7; seed 001's stick-slip model): break-away both ways, presliding, sliding at several
+equations (agents/lab/radau.py), for every bristle structure (Iurian et al. 2005: LuGre §1.4.6, Dahl §1.4.1,
+Maxwell-slip §1.4.7; Kang 1998's stick-slip model): break-away both ways, presliding, sliding at several
 speeds both ways, and the stick-slip period on Kang's rotor (none for Dahl, which has no drop from static
 to Coulomb level)."""
 

@@ -66,7 +66,8 @@ def figures(_: None, out: Path) -> list[str]:
     y = step_counts(doc.gain_counts_per_v_s2, tuple(t), doc.step_input_v)
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.plot(t, y, label="simulated 0.25 V step (drive encoder)")
-    ax.plot(doc.step_points_t_s, doc.step_points_counts, "o", label="measured points, seed 000 §2.2")
+    measured = "measured points, Iurian et al. 2005 §2.2"
+    ax.plot(doc.step_points_t_s, doc.step_points_counts, "o", label=measured)
     a, k, v = doc.document_a_per_s, doc.document_k_counts_per_v_s2, doc.step_input_v
     ax.plot(t, k * v / a * t - k * v / a**2 * (1 - np.exp(-a * t)), "--", label="document model k/(s(s+a))")
     ax.set(xlabel="t (s)", ylabel="counts", title="M220 open-loop step")

@@ -1,4 +1,4 @@
-"""Wallenborg's two-inertia flexible servo, seed 002 (Licentiate thesis, Lund 1987), §3: a DC drive
+"""Wallenborg's two-inertia flexible servo, Wallenborg 1987 (Licentiate thesis, Lund 1987), §3: a DC drive
 motor (J1) and an inertial load (J2) on a weak torsional shaft, tachometers on both shafts, Coulomb
 friction on both. Also its linear models: the state space of eq. (3.1) and G1, G2 of eq. (3.2)/(3.3),
 and their checks against the MuJoCo model (linearisation, simulated sine responses).
@@ -101,7 +101,7 @@ def tacho_gains(spec: PlantSpec) -> tuple[float, float]:
 
 
 def transfer(spec: PlantSpec, s: complex | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """G1(s), G2(s) of seed 002 eq. (3.2)/(3.3), built from the spec's parameters (not typed in)."""
+    """G1(s), G2(s) of Wallenborg 1987 eq. (3.2)/(3.3), built from the spec's parameters (not typed in)."""
     J1, J2 = (j.inertia for j in spec.joints)
     d1, d2 = (j.viscous for j in spec.joints)
     k, d = spec.springs[0].stiffness, spec.springs[0].damping
@@ -117,8 +117,8 @@ def transfer(spec: PlantSpec, s: complex | np.ndarray) -> tuple[np.ndarray, np.n
 
 
 def state_space(spec: PlantSpec, sensor: str = "y1") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(A, B, C) of seed 002 eq. (3.1) from the plant parameters; x = (ω1, ω2, θ2 - θ1), u in V, y in V;
-    sensor "y1" (colocated tacho) or "y2" (load tacho)."""
+    """(A, B, C) of Wallenborg 1987 eq. (3.1) from the plant parameters; x = (ω1, ω2, θ2 - θ1), u in V, y in
+    V; sensor "y1" (colocated tacho) or "y2" (load tacho)."""
     J1, J2 = (j.inertia for j in spec.joints)
     d1, d2 = (j.viscous for j in spec.joints)
     k, d = spec.springs[0].stiffness, spec.springs[0].damping

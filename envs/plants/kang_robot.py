@@ -1,4 +1,4 @@
-"""Kang's single-axis robot, seed 001 (Kang 1998, Control Eng. Practice 6:359-367), §2 and §6: a 1-DOF
+"""Kang's single-axis robot, Kang 1998 (Kang 1998, Control Eng. Practice 6:359-367), §2 and §6: a 1-DOF
 rotor with asymmetric stick-slip friction, a current-fed DC servo (the command is a torque, N·m) and an
 analog rate-feedback loop used by RDFC (§4, Fig. 4).
 

@@ -1,5 +1,5 @@
-"""The ECP Model 220 industrial emulator, seed 000 part 2 (Iurian et al., UPC IOC-DT-P-2005-20): drive
-disk, belt, speed-reduction (SR) pulley shaft, belt, load disk; encoders on drive and load.
+"""The ECP Model 220 industrial emulator, Iurian et al. 2005 part 2 (Iurian et al., UPC IOC-DT-P-2005-20):
+drive disk, belt, speed-reduction (SR) pulley shaft, belt, load disk; encoders on drive and load.
 
 The physical layout is three hinge joints coupled by belt-ratio equality constraints, so the reflected
 inertia of eq. (22) is a result, checked here by simulation. The identified model of §2.2-2.3 is given in
@@ -103,7 +103,7 @@ def inertias(cfg: Node) -> dict[str, float]:
 
 
 def eq22(cfg: Node) -> float:
-    """Reflected drive inertia by the document's closed form, eq. (22) of seed 000 (kg·m²)."""
+    """Reflected drive inertia by the document's closed form, eq. (22) of Iurian et al. 2005 (kg·m²)."""
     J = inertias(cfg)
     c, b = cfg.section("configuration"), cfg.section("belt")
     n_g1 = c["n_pd"] / b.number("n_drive_pulley_teeth", *TEETH_RANGE)

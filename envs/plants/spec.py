@@ -169,7 +169,8 @@ class PlantSpec:
         raise ConfigError("initial state", f"expected {n} values (or 1 for a belt drive), got {x.shape}")
 
     def reflected_inertia(self, joint: str | None = None) -> float:
-        """Inertia seen at `joint` (default: first) of the belt-coupled chain, kg·m² (cf. seed 000 eq. 22)."""
+        """Inertia seen at `joint` (default: first) of the belt-coupled chain, kg·m² (cf. Iurian et al. 2005
+        eq. 22)."""
         ratios = self.kinematic_ratios()
         joint = joint or self.joints[0].name
         if joint not in ratios:
