@@ -61,7 +61,7 @@ def _jsonable(x: Any) -> Any:
     return x.tolist() if hasattr(x, "tolist") else str(x)
 
 
-LOCKSTEP = 10  # episodes of one controller and env stepped together at most (evaluate, the engine's chunks)
+LOCKSTEP = 20  # episodes of one controller and env stepped together at most (evaluate, the engine's chunks)
 
 
 class EnvCache:
@@ -182,6 +182,21 @@ def run_episodes(
     return results  # type: ignore[return-value]  # every index filled
 
 
+def lockstep_actions(actions: np.ndarray | list, n: int) -> np.ndarray:
+    """(n,) float actions from a lockstep's array (one row per episode) or list (one action per
+    episode, each a scalar, (1,) or (1, 1)), checked as check_action checks one env's. A list of equal
+    shapes is checked as one array (the same values); any other list entry by entry, for its error."""
+    if not isinstance(actions, np.ndarray):
+        try:
+            stacked = np.asarray(actions)
+        except ValueError:  # entries of unequal shapes
+            stacked = None
+        if stacked is None or stacked.dtype.kind not in "fiu" or stacked.shape not in ((n,), (n, 1)):
+            return np.array([check_action(u, 1)[0] for u in actions])
+        actions = stacked
+    return check_action(actions, n)
+
+
 def _run_together(
     controller: Controller,
     episodes: list[Episode],
@@ -211,7 +226,7 @@ def _run_together(
             obs[i] = core.reset(rows[i : i + 1], [e.seed], check_options(e.options()))[0]
     team = controller.lockstep(n)
     team.reset(EpisodeContext(sc, design, know))
-    totals, diverged, live = [0.0] * n, [False] * n, rows
+    totals, diverged, live = np.zeros(n), np.zeros(n, dtype=bool), rows
     while len(live):
         if team.reads_truth:
             for i in live:
@@ -221,16 +236,12 @@ def _run_together(
             o, reward, term, trunc, info = env.step(actions[0])
             o, r, ended, flags = o[None], [reward], np.array([term or trunc]), [info.get("diverged", False)]
         else:
-            if isinstance(actions, np.ndarray):  # a lockstep's array of actions, one row per episode
-                a = check_action(actions, len(live))
-            else:
-                a = np.array([check_action(u, 1)[0] for u in actions])
+            a = lockstep_actions(actions, len(live))
             o, r, term, trunc, info = core.step(a, live)
             ended, flags = term | trunc, info["diverged"]
         obs[live] = o
-        for j, i in enumerate(live):
-            totals[i] += float(r[j])
-            diverged[i] = bool(flags[j])
+        totals[live] += r
+        diverged[live] = flags
         live = live[~ended]
     return [
         EpisodeResult(
@@ -238,8 +249,8 @@ def _run_together(
             e.scenario,
             e.seed,
             core.metrics(i),  # every metric (info leaves the undefined ones out; results write n/a)
-            totals[i],
-            diverged[i],
+            float(totals[i]),
+            bool(diverged[i]),
             {k: v.copy() for k, v in core.episode_log(i).items()} if keep_log else None,
             randomize=e.randomize,
             params=params_text(e),
