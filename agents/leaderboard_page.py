@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import base64
 import html
+import io
 import math
 from typing import TYPE_CHECKING
 
@@ -160,10 +161,21 @@ def page(board: Board, figures: dict[str, bytes], provenance: dict[str, str]) ->
     parts += _aggregates(board) + _verdicts(board) + _scenarios(board)
     parts.append("<h2 id='figures'>Figures</h2>")
     for name, png in figures.items():
-        data = base64.b64encode(png).decode("ascii")
+        data = base64.b64encode(compact_png(png)).decode("ascii")
         parts.append(f"<h3>{_e(name)}</h3><img alt='{_e(name)}' src='data:image/png;base64,{data}'>")
     parts.append(f"<script>{SCRIPT}</script></body></html>")
     return "\n".join(parts) + "\n"
+
+
+def compact_png(png: bytes) -> bytes:
+    """The figure as a 256-colour PNG: a third of the bytes of matplotlib's true-colour file for line
+    plots, which keeps the page (it embeds every figure) a few MB."""
+    from PIL import Image  # matplotlib's own dependency; only the page needs it
+
+    out = io.BytesIO()
+    image = Image.open(io.BytesIO(png)).convert("RGB")
+    image.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(out, format="PNG", optimize=True)
+    return out.getvalue()
 
 
 def _answer_cell(cell: tuple[str, float] | str) -> str:

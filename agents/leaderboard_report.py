@@ -292,10 +292,12 @@ def aggregate_csv(agg: list[dict]) -> str:
 
 
 def palette(names: list[str]) -> dict[str, Any]:
-    """A distinct colour per entry (tab20, tab20b, tab20c: 60 before one repeats), grey for references."""
+    """A distinct colour per entry (tab20's dark then light shades, tab20b, tab20c: 60 before one
+    repeats), grey for references."""
     from matplotlib import colormaps
 
-    colours = [c for m in ("tab20", "tab20b", "tab20c") for c in colormaps[m].colors]
+    tab20 = colormaps["tab20"].colors  # its dark shades first: neighbours in the list differ in hue
+    colours = [*tab20[0::2], *tab20[1::2], *(c for m in ("tab20b", "tab20c") for c in colormaps[m].colors)]
     entries = [n for n in names if n not in REFERENCES]
     return {
         **{n: colours[i % len(colours)] for i, n in enumerate(entries)},

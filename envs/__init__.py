@@ -35,6 +35,9 @@ ENV_IDS = {  # id -> (single env, vector env over mujoco.batch for gym.make_vec)
     "frictiongym/KangRobot-v0": ("servo_env:KangRobotEnv", "vector:kang_robot_vector"),
     "frictiongym/EMPS-v0": ("servo_env:EMPSEnv", "vector:emps_vector"),
 }
+VERSION_HISTORY = {  # an env id's version: a change that can alter learning results bumps it (docs/envs)
+    "v0": "first release: the four plants and their scenarios as configs/ holds them",
+}
 PREFIXES = {  # a scenario file's name starts with its plant's prefix (tests check every scenario's plant)
     "m220": "frictiongym/M220-v0",
     "flexible": "frictiongym/FlexibleServo-v0",

@@ -513,6 +513,26 @@ class ServoCore:
         )
 
 
+def new_renderer(model: mujoco.MjModel) -> mujoco.Renderer:
+    """A 640 x 480 offscreen renderer of the model, or a clear error where there is no OpenGL context."""
+    try:
+        return mujoco.Renderer(model, 480, 640)
+    except mujoco.FatalError as e:  # no OpenGL context: a machine without a display
+        raise RuntimeError(
+            "no OpenGL context to render in; without a display set MUJOCO_GL=egl (or osmesa) before "
+            "MuJoCo is imported"
+        ) from e
+
+
+def render_frame(renderer: mujoco.Renderer, data: mujoco.MjData) -> np.ndarray:
+    """One RGB frame of the plant from its top camera, each moving part labelled by its body's name
+    (drive, load, carriage, ...)."""
+    labels = mujoco.MjvOption()
+    labels.label = mujoco.mjtLabel.mjLABEL_BODY
+    renderer.update_scene(data, camera="top", scene_option=labels)
+    return renderer.render()
+
+
 def check_action(action: object, n: int) -> np.ndarray:
     """(n,) float actions from one finite real scalar per env: shapes (), (1,) for n = 1, or (n,), (n, 1).
     Anything else (strings, bytes, complex, bool, empty, other shapes, NaN) is a clear error."""

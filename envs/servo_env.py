@@ -19,7 +19,7 @@ from gymnasium.envs.registration import EnvSpec
 from gymnasium.utils import EzPickle
 
 from .config import boolean
-from .core import ServoCore, check_action, check_options
+from .core import ServoCore, check_action, check_options, new_renderer, render_frame
 from .metrics import defined_metrics
 from .records import pyplot
 from .sampler import check_seed
@@ -36,7 +36,7 @@ OBSERVATION_DOC = f"""
     clipped by the plant's limit. Classical controllers convert with ``command_to_action`` /
     ``action_to_command`` and read physical readings with ``decode_observation``.
 
-    Reward: -(w_t·min((e/s)², 1e6) + w_a·min(|e/s|, 1e6) + w_u·a² + w_du·(a - a_prev)²) with e = true
+    Reward: ``-(w_t·min((e/s)², 1e6) + w_a·min(|e/s|, 1e6) + w_u·a² + w_du·(a - a_prev)²)`` with e = true
     output - reference at the new sample (w_a is 0 in every built-in scenario: a training option); the
     terms are in ``info`` as reward_tracking, reward_tracking_abs, reward_effort, reward_smoothness and sum
     to the reward. A diverged simulation (MuJoCo reset it, or its state is not finite) ends the episode
@@ -46,6 +46,22 @@ OBSERVATION_DOC = f"""
     friction_torque) comes from ``env.unwrapped.ground_truth()``, or in ``info`` with
     ``ground_truth_in_info=True`` (it costs ≈ 1.5 µs per step, ~5 % of the M220's step).
 """
+
+ARGUMENTS_DOC = """
+    Arguments (``gym.make(id, ...)``; a per-scenario id fixes ``scenario``):
+
+    - ``scenario``: a name of configs/scenarios/ or the path of a scenario YAML (default: the plant's
+      default scenario).
+    - ``randomize``: draw friction, inertia, delay and sensor noise from the plant's ranges at each reset
+      (default: the scenario's own setting).
+    - ``control_period_s``: the controller's sampling period, s (default: the plant preset's).
+    - ``episode_s``: the episode's length, s (default: the scenario's).
+    - ``overrides``: scenario keys deep-merged into its YAML, each checked, and ``plant_overrides`` for
+      the plant preset's (an identified drive's preset, for example).
+    - ``render_mode``: ``"rgb_array"`` (a 640 x 480 frame; headless: ``MUJOCO_GL=egl``) or None.
+    - ``ground_truth_in_info``: put qpos, qvel, bristle state and friction torque into ``info``.
+"""
+ENV_DOC = OBSERVATION_DOC + ARGUMENTS_DOC
 
 
 def check_plant(scenario: Scenario, plant: str | None) -> None:
@@ -97,7 +113,7 @@ def decode_observation(scenario: Scenario, obs: np.ndarray, trusted: bool = Fals
 
 
 class ServoEnv(JsonSafeSpec, gym.Env, EzPickle):
-    __doc__ = "A friction-dominated servo under sampled-data control (frictiongym)." + OBSERVATION_DOC
+    __doc__ = "A friction-dominated servo under sampled-data control (frictiongym)." + ENV_DOC
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": 25}
     default_scenario = "kang_regulation"
     plant: str | None = None
@@ -207,9 +223,8 @@ class ServoEnv(JsonSafeSpec, gym.Env, EzPickle):
         if self.render_mode != "rgb_array":
             return None
         if self._renderer is None:
-            self._renderer = mujoco.Renderer(self.core.model, 480, 640)
-        self._renderer.update_scene(self.core.backend.data, camera="top")
-        return self._renderer.render()
+            self._renderer = new_renderer(self.core.model)
+        return render_frame(self._renderer, self.core.backend.data)
 
     def close(self) -> None:
         """Release the renderer; the env cannot step or reset after it (closing twice is fine)."""
@@ -269,37 +284,51 @@ class ServoEnv(JsonSafeSpec, gym.Env, EzPickle):
 
 
 class M220Env(ServoEnv):
-    __doc__ = (
-        "ECP M220 industrial emulator (seed 000 part 2): drive disk, belt, SR pulleys, load disk; "
-        "sensors encoder_drive, encoder_load (rad, 16000 counts/rev); command in V." + OBSERVATION_DOC
+    description = (
+        "The ECP Model 220 industrial emulator (Iurian et al. 2005, part 2): a brushless drive disk, a "
+        "belt to a speed-reduction (SR) pulley, a second belt to the load disk; LuGre friction, lumped "
+        "on the drive shaft, from the document's asymmetric steady-state table. Encoders on the drive "
+        "and the load (rad, 16000 counts/rev); the command is the amplifier voltage (V). The position "
+        "loop tracks the drive encoder: stick-slip at low speed and set-points within a few counts make "
+        "it hard."
     )
+    __doc__ = description + ENV_DOC
     default_scenario = "m220_regulation"
     plant = "m220"
 
 
 class FlexibleServoEnv(ServoEnv):
-    __doc__ = (
-        "Wallenborg's two-inertia flexible servo (seed 002 §3): sensors tacho1, tacho2 (V, 0.1 V per "
-        "rad/s); command in V (±10 V)." + OBSERVATION_DOC
+    description = (
+        "Wallenborg's two-inertia flexible servo (Wallenborg 1987, §3): a DC motor's inertia J1 coupled "
+        "by a torsional shaft spring to the load inertia J2, Coulomb friction on both shafts, "
+        "tachometers on both (V, 0.1 V per rad/s); the command is the amplifier voltage (V, ±10 V), "
+        "sampled at 40 ms. Speed loops on the motor tacho; the spring's resonance and the friction at "
+        "zero speed make limit cycles."
     )
+    __doc__ = description + ENV_DOC
     default_scenario = "flexible_speed_step"
     plant = "flexible_servo"
 
 
 class KangRobotEnv(ServoEnv):
-    __doc__ = (
-        "Kang's single-axis robot (seed 001 §6): sensor encoder (rad); command a torque in N·m."
-        + OBSERVATION_DOC
+    description = (
+        "Kang's single-axis robot (Kang 1998, §6): one rotor of large inertia with asymmetric static "
+        "friction well above its Coulomb level, an encoder (rad), an analog rate loop around the motor, "
+        "and a torque command (N·m) sampled at 20 ms. A PD loop stops anywhere inside its stick band; "
+        "set-point regulation and ramps."
     )
+    __doc__ = description + ENV_DOC
     default_scenario = "kang_regulation"
     plant = "kang_robot"
 
 
 class EMPSEnv(ServoEnv):
-    __doc__ = (
-        "The EMPS prismatic drive (Janot, Gautier, Brunot 2019), identified from its measurements: sensor "
-        "encoder (m, 50 nm); command in V (±10 V, gτ = 35.15 N/V). Version history: v0, first release."
-        + OBSERVATION_DOC
+    description = (
+        "The EMPS prismatic drive (Janot, Gautier, Brunot 2019): a carriage on a ball screw driven by a "
+        "DC motor, identified from the published measurements (the simulation is checked against them, "
+        "docs/emps.md). An encoder (m, 50 nm) and an amplifier voltage command (V, ±10 V, "
+        "gτ = 35.15 N/V); position tracking of the lab's trajectory, pulses and random references."
     )
+    __doc__ = description + ENV_DOC
     default_scenario = "emps_tracking"
     plant = "emps"

@@ -15,7 +15,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .config import boolean, integer
-from .core import ServoCore, check_action, check_options
+from .core import ServoCore, check_action, check_options, new_renderer, render_frame
 from .metrics import defined_metrics
 from .sampler import check_seed
 from .scenario import load_scenario
@@ -183,15 +183,14 @@ class ServoVectorEnv(JsonSafeSpec, VectorEnv):
         if self.render_mode != "rgb_array":
             return None
         if self._renderer is None:
-            self._renderer = (mujoco.Renderer(self.core.model, 480, 640), mujoco.MjData(self.core.model))
+            self._renderer = (new_renderer(self.core.model), mujoco.MjData(self.core.model))
         renderer, data = self._renderer
         qpos, qvel, *_ = self.core.backend.state()
         frames = []
         for i in range(self.num_envs):
             data.qpos[:], data.qvel[:] = qpos[i], qvel[i]
             mujoco.mj_forward(self.core.model, data)
-            renderer.update_scene(data, camera="top")
-            frames.append(renderer.render())
+            frames.append(render_frame(renderer, data))
         return tuple(frames)
 
     def close_extras(self, **kwargs: Any) -> None:

@@ -26,6 +26,8 @@ COMMANDS = {  # subcommand -> module of frictiongym.scripts
     "windows": "windows",
     "identify": "identify",
     "reproduce": "reproduce",
+    "render": "render",
+    "docs": "docs",
     "zoo": "zoo",
     "convert-model": "convert_model",
     "export": "export",

@@ -15,6 +15,7 @@ from frictiongym.envs.records import pyplot
 
 from .. import registry
 from ..base import ZERO
+from ..leaderboard_report import palette
 from .study import AXES, DEGRADED, DESIGNS, MODEL_ERROR_SEEDS, SEEDS, STRUCTURES
 
 
@@ -195,31 +196,44 @@ def _fmt_shift(axis: str, s: float) -> str:
 
 
 def robustness_figure(table: list[dict[str, Any]], scenario: str) -> Any:
-    """Robustness curves: main metric and score against each axis's shift, with 95 % intervals."""
+    """Robustness curves: the main metric (mean and 95 % interval over the episodes) of each controller
+    against each axis's shift, one panel per axis in a grid, a distinct colour per controller (the
+    leaderboard's palette), the nominal plant marked. The main metric is the headline here: every shifted
+    plant is scored on it, and the old score 1 - m/m_Zero cannot separate the entries."""
     plt = pyplot()
 
     axes = [a for a in AXES if any(r["axis"] == a.key for r in table)]
-    fig, ax = plt.subplots(2, len(axes), figsize=(3.2 * len(axes), 6), squeeze=False)
     names = sorted({r["controller"] for r in table if r["controller"] != ZERO})
+    colours = palette(names)
+    cols = min(4, len(axes))
+    rows = -(-len(axes) // cols)
+    fig, ax = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.0 * rows + 0.8), squeeze=False)
     for j, a in enumerate(axes):
+        panel = ax.flat[j]
         for name in names:
             rs = sorted(
                 (r for r in table if r["controller"] == name and r["axis"] == a.key), key=lambda r: r["shift"]
             )
             x = [r["shift"] for r in rs]
-            for i, (k, lo, hi) in enumerate(
-                (("mean", "ci_low", "ci_high"), ("score", "score_ci_low", "score_ci_high"))
-            ):
-                line = ax[i, j].plot(x, [r[k] for r in rs], "o-", ms=3, label=name)[0]
-                ax[i, j].fill_between(
-                    x, [r[lo] for r in rs], [r[hi] for r in rs], alpha=0.2, color=line.get_color()
-                )
-        ax[0, j].set(title=a.label, yscale="log")
-        ax[1, j].set(xlabel=a.key)
-    ax[0, 0].set_ylabel(table[0]["metric"])
-    ax[1, 0].set_ylabel("score (1 - m/m_Zero)")
-    ax[0, -1].legend(fontsize=6)
-    fig.suptitle(f"sim-to-real: {scenario}")
+            panel.plot(x, [r["mean"] for r in rs], "o-", ms=3, color=colours[name], label=name)
+            lo, hi = [r["ci_low"] for r in rs], [r["ci_high"] for r in rs]
+            panel.fill_between(x, lo, hi, alpha=0.18, color=colours[name])
+        nominal = 1.0 if a.key.endswith("_scale") else 0.0 if a.key == "asymmetry_shift" else None
+        if nominal is not None:  # (the delay axis's nominal is the preset's own delay)
+            panel.axvline(nominal, color="0.6", lw=0.8, ls=":")
+        panel.set(title=a.label, xlabel=a.key, yscale="log")
+        if j % cols == 0:
+            panel.set_ylabel(table[0]["metric"])
+    for panel in ax.flat[len(axes):]:
+        panel.axis("off")
+    handles, labels = ax.flat[0].get_legend_handles_labels()
+    fig.suptitle(f"sim-to-real: {scenario} (dotted: the nominal plant)")
+    if len(axes) < ax.size:  # the legend in the free panel
+        ax.flat[-1].legend(handles, labels, loc="center", fontsize=8, frameon=False)
+        fig.tight_layout(rect=(0, 0, 1, 0.96))
+    else:
+        fig.legend(handles, labels, loc="lower center", ncol=min(5, len(labels)), fontsize=8, frameon=False)
+        fig.tight_layout(rect=(0, 0.05 * (1 + len(labels) // 5) / rows, 1, 0.96))
     return fig
 
 
@@ -230,6 +244,7 @@ def structures_figure(table: list[dict[str, Any]], scenario: str) -> Any:
     rows = [r for r in table if r["axis"] == "friction_model" and r["controller"] != ZERO]
     structures = [s for s in STRUCTURES if any(r["shift"] == s for r in rows)]
     names = sorted({r["controller"] for r in rows})
+    colours = palette(names)
     fig, ax = plt.subplots(figsize=(1.4 * len(structures) + 5, 3.8))
     w = 0.8 / max(len(names), 1)
     for k, name in enumerate(names):
@@ -248,7 +263,7 @@ def structures_figure(table: list[dict[str, Any]], scenario: str) -> Any:
             yerr=err,
             capsize=2,
             label=name,
-            color=plt.cm.tab20(k % 20),
+            color=colours[name],
         )
     ax.set_xticks(np.arange(len(structures)), structures)
     ax.set(yscale="log", ylabel=rows[0]["metric"] if rows else "", title=f"friction structures: {scenario}")

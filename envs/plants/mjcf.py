@@ -96,8 +96,56 @@ def to_mjcf(spec: PlantSpec) -> str:
         )
     return (
         f'<mujoco model="{spec.name}"><option timestep="{spec.timestep!r}" integrator="{spec.integrator}" '
-        f'gravity="0 0 0"><flag contact="disable"/></option>'
-        f'<visual><global offwidth="640" offheight="480"/></visual>'
-        f'<worldbody><light pos="0 0 2"/><camera name="top" pos="0.25 -0.6 0.6" xyaxes="1 0 0 0 0.7 0.7"/>'
-        f"{''.join(bodies)}</worldbody><actuator>{''.join(actuators)}</actuator>{''.join(extra)}</mujoco>"
+        f'gravity="0 0 0"><flag contact="disable"/></option>{SCENERY_ASSETS}'
+        f'<worldbody>{scenery(spec)}{"".join(bodies)}</worldbody>'
+        f"<actuator>{''.join(actuators)}</actuator>{''.join(extra)}</mujoco>"
     )
+
+
+# What a rendered frame shows besides the moving parts: a sky, a floor, a stand under each disk (a rail
+# under the EMPS's carriage), the belts and the shaft spring, a light and a camera centred on the
+# mechanism. All of it is fixed to the world and massless, touches nothing (contact is off): the dynamics
+# are those of the bodies above alone.
+SCENERY_ASSETS = (
+    '<visual><global offwidth="640" offheight="480"/><headlight ambient="0.35 0.35 0.35"/></visual>'
+    '<asset><texture name="sky" type="skybox" builtin="gradient" rgb1="0.92 0.94 0.97" rgb2="0.6 0.66 0.75" '
+    'width="64" height="64"/><texture name="grid" type="2d" builtin="checker" rgb1="0.82 0.82 0.8" '
+    'rgb2="0.74 0.74 0.72" width="256" height="256"/><material name="floor" texture="grid" '
+    'texrepeat="8 8"/></asset>'
+)
+FLOOR_Z = -0.12  # m, below the disks (at z = 0)
+STEEL, BELT = 'rgba="0.45 0.47 0.5 1"', 'rgba="0.15 0.15 0.15 1"'
+
+
+def scenery(spec: PlantSpec) -> str:
+    """The fixed, massless world geoms and the camera of a plant's frame (see SCENERY_ASSETS)."""
+    span = 0.25 * (len(spec.joints) - 1)  # m, from the first body to the last
+    mid = span / 2
+    parts = [
+        f'<light pos="{mid} -0.3 1.0" dir="0 0.3 -1"/>',
+        f'<geom type="plane" pos="{mid} 0 {FLOOR_Z}" size="{span / 2 + 0.35} 0.35 0.01" material="floor" '
+        'mass="0"/>',
+        f'<camera name="top" pos="{mid} {-0.42 - 0.55 * span} {0.32 + 0.35 * span}" '
+        f'xyaxes="1 0 0 0 0.6 0.8"/>',
+    ]
+    h = (-FLOOR_Z - 0.01) / 2  # half height of a stand, floor to disk
+    for i, j in enumerate(spec.joints):
+        x = 0.25 * i
+        if j.kind == "slide":  # a rail along the carriage's travel
+            parts.append(f'<geom type="box" pos="0 0 -0.03" size="0.3 0.02 0.01" mass="0" {STEEL}/>')
+        else:
+            parts.append(f'<geom type="cylinder" pos="{x} 0 {-0.01 - h}" size="0.012 {h}" mass="0" {STEEL}/>')
+    for b in spec.belts:  # two straight runs between the pulleys
+        x0, x1 = (0.25 * [j.name for j in spec.joints].index(n) for n in (b.driver, b.driven))
+        for y in (-0.07, 0.07):
+            parts.append(
+                f'<geom type="box" pos="{(x0 + x1) / 2} {y} 0" size="{abs(x1 - x0) / 2} 0.004 0.008" '
+                f'mass="0" {BELT}/>'
+            )
+    for sp in spec.springs:  # the shaft between the two inertias
+        x0, x1 = (0.25 * [j.name for j in spec.joints].index(n) for n in (sp.a, sp.b))
+        parts.append(
+            f'<geom type="capsule" fromto="{x0 + 0.08} 0 0 {x1 - 0.08} 0 0" size="0.006" mass="0" '
+            'rgba="0.95 0.6 0.1 1"/>'
+        )
+    return "".join(parts)
