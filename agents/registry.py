@@ -163,7 +163,7 @@ MODELS_DIR = Path(__file__).parent / "models"  # committed trained models, by gr
 
 
 # The committed groups the default leaderboard runs: the specialists, each trained on one scenario, and
-# one compensator per plant for all of its scenarios (issue 21; docs/training.md "Generalists").
+# one compensator per plant for all of its scenarios (issue 21; docs/research.md "Generalists").
 LEADERBOARD_GROUPS = ("specialist", "generalist")
 
 

@@ -107,5 +107,13 @@ def git_commit() -> str:
 
 
 def command_line() -> str:
-    """The exact command this process runs, shell-quoted."""
-    return shlex.join([Path(sys.executable).name, *sys.argv])
+    """The exact command this process runs, shell-quoted, as typed from the repository: `frictiongym
+    COMMAND ...` when the frictiongym command dispatched it (its argv[0] is "frictiongym COMMAND"), else
+    python and the script, relative to the working directory when it lies below it."""
+    argv0, rest = sys.argv[0], sys.argv[1:]
+    if argv0.startswith("frictiongym "):
+        return shlex.join([*argv0.split(" ", 1), *rest])
+    path = Path(argv0)
+    if path.is_absolute() and path.is_relative_to(Path.cwd()):
+        argv0 = str(path.relative_to(Path.cwd()))
+    return shlex.join([Path(sys.executable).name, argv0, *rest])

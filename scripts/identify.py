@@ -22,8 +22,8 @@ position_m|_rad|_deg, reference_*, command_V[, disturbance_V] and '# drive_gain_
 CSV logs: '#' provenance lines, then columns time_s, command_V or command_Nm, position_rad|position_deg
 and/or speed_rad_s|speed_deg_s, and for holds/ramps a segment column (one per hold or ramp) and optionally
 speed_reference_rad_s (docs/identification.md). --simulate runs the same experiments on a plant of the
-suite (randomised with --randomize) and saves their logs. --document uses the M220's own data (seed 000
-§2.2-2.3). Writes DIR/report.md, result.json, fit plots and identified.yaml:
+suite (randomised with --randomize) and saves their logs. --document uses the M220's own data (Iurian et al.
+2005 §2.2-2.3). Writes DIR/report.md, result.json, fit plots and identified.yaml:
     gym.make("frictiongym/M220-v0", scenario=..., overrides=yaml.safe_load(open("DIR/identified.yaml")))
 """
 
@@ -45,7 +45,9 @@ def main(argv: list[str] | None = None) -> int:
     src = ap.add_mutually_exclusive_group()
     src.add_argument("--csv", type=Path, help="a hardware (or any) log: a step, or speed holds")
     src.add_argument("--simulate", choices=plant_names(), help="run the experiments on this simulated plant")
-    src.add_argument("--document", action="store_true", help="the M220 data printed in seed 000 §2.2-2.3")
+    src.add_argument(
+        "--document", action="store_true", help="the M220 data printed in Iurian et al. 2005 §2.2-2.3"
+    )
     ap.add_argument("--seed", type=int, default=0, help="simulated plant's seed (with --randomize)")
     ap.add_argument("--randomize", action="store_true", help="draw the simulated plant from its ranges")
     ap.add_argument("--step-v", type=float, help="the step command of a --csv step log (V or N·m)")

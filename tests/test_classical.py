@@ -84,7 +84,7 @@ def test_southward_sticks_where_the_static_level_of_the_approach_reaches_its_pus
     """Southward's bang-bang push is margin·T_s of the nominal plant (Kang §6: 1.2). The M220 set-point
     is approached from above, so the drive must break away in the negative direction: where that
     direction's static level (f_s + bias, the asymmetry shifting it) comes within 1 % of the push,
-    Southward stalls outside its last count (the validation draws where it does, docs/training.md "The
+    Southward stalls outside its last count (the validation draws where it does, docs/research.md "The
     M220 set-points"); below it, the drive stops within one encoder count (2π/16000 rad)."""
     spec = plant_spec("m220")
     values = {"friction_scale": friction_scale, "asymmetry_shift": asymmetry_shift}

@@ -96,3 +96,14 @@ def test_a_wrong_command_line_is_caught(cmd: str, monkeypatch: pytest.MonkeyPatc
     with pytest.raises(SystemExit) as e:
         parse("here", cmd, monkeypatch)
     assert e.value.code == 2  # argparse's usage error
+
+
+def test_the_readme_answer_tables_are_the_committed_test_runs():
+    """The README's per-plant answer is generated: each plant's table of the `test` run's answer.md
+    (docs/results/test/answer.md, written by the leaderboard) appears in the README as it is."""
+    answer = (ROOT / "docs" / "results" / "test" / "answer.md").read_text()
+    tables = re.findall(r"^## (\S+)\n\n((?:\|.*\n)+)", answer, re.M)
+    readme = (ROOT / "README.md").read_text()
+    assert [p for p, _ in tables] == ["kang_robot", "m220", "flexible_servo", "emps"]
+    for plant, table in tables:
+        assert table in readme, plant

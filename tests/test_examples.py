@@ -82,12 +82,16 @@ def test_no_tracking_scenario_leaves_the_best_classical_behind_a_naive_feed_forw
     untuned) on every tracking scenario of the default and generalisation suites where it runs, on 3
     seeds outside every suite's range (no run trained, tuned or selected on them): it never beats the
     scenario's best classical baseline by the rule every entry meets (a paired 95 % interval below 0,
-    within the effort rule, no new limit cycle)."""
+    within the effort rule, no new limit cycle). The classical side here is the uncompensated loops and
+    the families that were the strongest on some tracking scenario of test or generalisation (feed-forward
+    loops, DOB, their tuned twins): a subset, so its best is never stronger than the full set's and the
+    check is, if anything, harder to pass; the rest would only lengthen CI."""
     naive = f"{ROOT / 'examples' / 'naive_feedforward.py'}:NaiveFeedForward"
     suites = [*load_suite("default"), *load_suite("generalisation")]
     tracking = [n for n in dict.fromkeys(e.scenario for e in suites) if load_scenario(n).task == TRACKING]
     episodes = [Episode(n, s, True) for n in tracking for s in (6000, 6001, 6002)]
-    classical = [n for n in registry.BUILTIN if n != "Zero"]
+    strongest = ("PID+FF", "PID+MFF", "Cascade+MFF", "DOB")
+    classical = ["PD", "PID", *(n for n in registry.BUILTIN if n.split("[")[0] in strongest)]
     _, table = leaderboard.run("inline", [*classical, naive], None, False, 2, episodes)
     mine = leaderboard.verdicts(table, {n: load_scenario(n) for n in table})
     assert {v["controller"] for v in mine} == {"NaiveFF"}

@@ -130,3 +130,19 @@ def test_no_committed_text_file_holds_a_machine_path():
                 if pattern.search(line)
             ]
     assert not bad, bad
+
+
+def test_the_recorded_command_is_what_was_typed_from_the_repository(monkeypatch, tmp_path):
+    """A run's `command` (manifests, run.json, identified.yaml) is the frictiongym command as typed when
+    that dispatched it (its argv[0] is "frictiongym COMMAND"), else python and the script, relative to
+    the working directory below which it lies: no machine path, runnable from the repository."""
+    from frictiongym.envs.records import command_line
+
+    monkeypatch.setattr("sys.argv", ["frictiongym train", "--config", "residual_sac", "--out", "out/a b"])
+    assert command_line() == "frictiongym train --config residual_sac --out 'out/a b'"
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr("sys.argv", [str(tmp_path / "scripts" / "train.py"), "--seed", "0"])
+    assert command_line().endswith(" scripts/train.py --seed 0")
+    assert command_line().split()[0].startswith("python")
+    monkeypatch.setattr("sys.argv", ["/elsewhere/train.py"])
+    assert command_line().endswith(" /elsewhere/train.py")

@@ -1,5 +1,5 @@
-"""Coulomb + viscous friction feed-forward from identified parameters (seed 000 §2.3 for the M220) on top
-of the PD position loop of pid.py (`CoulombViscousFF`) or of its PID loop (`PIDCoulombViscousFF`), for
+"""Coulomb + viscous friction feed-forward from identified parameters (Iurian et al. 2005 §2.3 for the M220)
+on top of the PD position loop of pid.py (`CoulombViscousFF`) or of its PID loop (`PIDCoulombViscousFF`), for
 tracking a previewed reference."""
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ class PIDCoulombViscousFF(CoulombViscousFF):
     miss (a drawn friction scale, asymmetry, drift) and the feed-forward takes the Coulomb step at a
     reversal off the integrator, which otherwise has to wind through it. The integrator's anti-windup
     sees the feedback part of the command (pid.PID.command); the applied total, measured against it, is in
-    docs/training.md ("PID+FF")."""
+    docs/research.md ("PID+FF")."""
 
     name: ClassVar[str] = "PID+FF"
     integral: ClassVar[bool] = True

@@ -1,7 +1,7 @@
-"""A speed-scheduled blend of two classical loops, for use as a residual base (not a baseline: no seed
-describes it, so the leaderboard does not rank it unless asked by name).
+"""A speed-scheduled blend of two classical loops, for use as a residual base (not a baseline: no source
+document describes it, so the leaderboard does not rank it unless asked by name).
 
-On the M220 no classical loop is best everywhere (validation suite, docs/training.md "Generalists"): PID
+On the M220 no classical loop is best everywhere (validation suite, docs/research.md "Generalists"): PID
 at set-points and on the 0.05 Hz reversals, where the LuGre observer's velocity estimate is the encoder's
 quantisation (one count per 5 ms period is 0.0785 rad/s) and its compensation chatters; the LuGre observer
 on faster motion. This loop runs both on every sample and applies u = (1 - w)·u_low + w·u_high, with the
@@ -17,7 +17,7 @@ What each option did on the M220's validation suite follows.
 
 Without bumpless transfer neither loop is told its share of the applied command, so PID's integrator keeps
 integrating the error while the observer (a PD loop on a position drive) commands, and hands it back as w
-falls (the fifth M220 generalist set was trained over it; docs/training.md keeps its figures). With
+falls (the fifth M220 generalist set was trained over it; docs/research.md keeps its figures). With
 `bumpless: true` each loop is told its share before it computes (authority(1 - w), authority(w)), and PID
 integrates only share·e. Measured on the validation suite (10 episodes, 500000-500009), against
 SpeedScheduled: 0.2 Hz reversal peak 0.0087 rad against 0.0157, jittered reversals 0.0139 against 0.0205,
@@ -52,7 +52,7 @@ set-points); `rest` all of it while the reference is at rest (this sample's refe
 one's: a set-point, a hold; a slow reversal moves on every sample, so the two are told apart exactly) and
 w otherwise (the eleventh and twelfth attempts); `floor` as `rest`, and at least `residual_floor` in
 motion (under the rest gate w is 0 through the 0.05 Hz reversals, so the twelfth generalists tied PID+FF
-there; the thirteenth, committed, trained with the floor). docs/training.md has each attempt.
+there; the thirteenth, committed, trained with the floor). docs/research.md has each attempt.
 """
 
 from __future__ import annotations

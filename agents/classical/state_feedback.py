@@ -1,4 +1,4 @@
-"""Wallenborg's state feedback + observer for the flexible servo (seed 002 §4, Appendix B CSFNL/DSFNL),
+"""Wallenborg's state feedback + observer for the flexible servo (Wallenborg 1987 §4, Appendix B CSFNL/DSFNL),
 designed by pole placement (continuous §4.1, digital §4.2) with python-control, with the friction
 compensation variants of §6.3: none, relay with dead zone, high gain with saturation. Also the analyses
 of §5-6 on the same design: regulator poles and stability limits, the friction loop's frequency response
@@ -117,7 +117,7 @@ def state_feedback_design(
 
 
 def regulator_poles(spec: PlantSpec, w_cl: float, zeta: float = 0.7, alpha: float = 1.5, sensor: str = "y1"):
-    """Poles of the (continuous) regulator itself, det(sI - A + BL + KC) = 0 (seed 002 eq. 6.1)."""
+    """Poles of the (continuous) regulator itself, det(sI - A + BL + KC) = 0 (Wallenborg 1987 eq. 6.1)."""
 
     d = state_feedback_design(spec, w_cl, zeta, alpha, sensor)
     return np.linalg.eigvals(d.A - d.B @ d.L - d.K @ d.C)
@@ -143,7 +143,8 @@ def regulator_stability_boundary(
 def friction_loop_response(
     spec: PlantSpec, w_cl: float, omega, sensor: str = "y1", zeta: float = 0.7, alpha: float = 1.5
 ):
-    """G(jω) of seed 002 eq. (5.3): friction torque on shaft 1 (N·m) -> y1 (V), regulator in the loop."""
+    """G(jω) of Wallenborg 1987 eq. (5.3): friction torque on shaft 1 (N·m) -> y1 (V), regulator in the loop.
+    """
 
     d = state_feedback_design(spec, w_cl, zeta, alpha, sensor)
     J1 = spec.joints[0].inertia
@@ -192,7 +193,7 @@ class StateFeedback(Controller):
     added to this loop's command, read one sample later from the held command in the observation (the
     observer's update for a period is made at the next sample, with the same arithmetic). Wallenborg's
     observer sees u0 only, so a residual reaches the plant but not the estimate x̂ the state feedback and
-    the relay act on (docs/training.md, flexible attempt 2). With no residual the commands are this
+    the relay act on (docs/research.md, flexible attempt 2). With no residual the commands are this
     loop's without it, bit for bit."""
 
     name: ClassVar[str] = "SF"

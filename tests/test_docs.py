@@ -1,0 +1,63 @@
+"""The documentation site: it builds with Sphinx with warnings as errors and every on-site link and anchor
+resolves (scripts/docs.py); the generated plant pages come from the code (ids, units, scenarios); the
+link check finds a broken link and a missing anchor; the frames show each plant on a lit floor."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from frictiongym.scripts import docs
+
+ROOT = Path(__file__).parents[1]
+pytest.importorskip("sphinx", reason="the docs extra: pip install -e '.[docs]'")
+
+
+def test_the_link_check_finds_a_missing_page_and_a_missing_anchor(tmp_path):
+    (tmp_path / "a.html").write_text('<h1 id="top">a</h1><a href="b.html#there">b</a><a href="#top">t</a>')
+    (tmp_path / "b.html").write_text('<p id="here"></p><a href="c.html">c</a><img src="_static/x.png">'
+                                     '<a href="https://example.org/x">out</a><a href="a.html#top">a</a>')
+    assert docs.broken_links(tmp_path) == [
+        "a.html: b.html#there (no such anchor)", "b.html: c.html", "b.html: _static/x.png"]
+    (tmp_path / "c.html").write_text("")
+    (tmp_path / "b.html").write_text('<a href="a.html#top">a</a>')
+    (tmp_path / "a.html").write_text('<h1 id="top">a</h1><a href="b.html">b</a>')
+    assert docs.broken_links(tmp_path) == []
+
+
+@pytest.mark.slow
+def test_the_site_builds_without_warnings_and_its_links_resolve(tmp_path):
+    site = tmp_path / "site"
+    assert docs.build(site) == []
+    pages = {p.relative_to(site).as_posix() for p in site.rglob("*.html")}
+    assert {"index.html", "tutorials/index.html", "generated/api.html", "generated/scenarios.html",
+            "leaderboard/index.html"} <= pages
+    for plant, env_id in [("m220", "frictiongym/M220-v0"), ("emps", "frictiongym/EMPS-v0")]:
+        page = (site / "generated" / "plants" / f"{plant}.html").read_text()
+        assert env_id in page and f"frames/{plant}.png" in page
+    emps = (site / "generated" / "plants" / "emps.html").read_text()
+    assert "kg</td>" in emps and "frictiongym/EMPS-Tracking-v0" in emps  # a slide's mass, its scenarios
+    api = (site / "generated" / "api.html").read_text()
+    assert 'id="frictiongym.agents.registry.make"' in api
+    assert 'id="frictiongym.envs.servo_env.ServoEnv"' in api
+
+
+@pytest.mark.slow
+def test_render_writes_a_frame_per_plant_showing_the_scene(tmp_path):
+    env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
+    proc = subprocess.run([sys.executable, str(ROOT / "scripts/render.py"), "--out", str(tmp_path)],
+                          capture_output=True, text=True, env=env, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    import matplotlib.image
+
+    for plant in ("m220", "flexible_servo", "kang_robot", "emps"):
+        img = matplotlib.image.imread(tmp_path / f"{plant}.png")[..., :3]
+        assert img.shape == (480, 640, 3)
+        # a lit scene: the sky and the floor, not the empty black of a bare model
+        assert img.mean() > 0.5 and (img.max(axis=2) < 0.05).mean() < 0.01
+        # the mechanism is in the middle: the centre third differs from the scene's borders
+        centre = img[160:320, 213:427]
+        assert np.abs(centre.mean(axis=(0, 1)) - img[:40].mean(axis=(0, 1))).max() > 0.05
