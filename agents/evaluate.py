@@ -183,18 +183,19 @@ def run_episodes(
 
 
 def lockstep_actions(actions: np.ndarray | list, n: int) -> np.ndarray:
-    """(n,) float actions from a lockstep's array (one row per episode) or list (one action per
-    episode, each a scalar, (1,) or (1, 1)), checked as check_action checks one env's. A list of equal
-    shapes is checked as one array (the same values); any other list entry by entry, for its error."""
-    if not isinstance(actions, np.ndarray):
-        try:
-            stacked = np.asarray(actions)
-        except ValueError:  # entries of unequal shapes
-            stacked = None
-        if stacked is None or stacked.dtype.kind not in "fiu" or stacked.shape not in ((n,), (n, 1)):
-            return np.array([check_action(u, 1)[0] for u in actions])
-        actions = stacked
-    return check_action(actions, n)
+    """A lockstep's actions as one array for the core's step, which checks it (check_action): its array
+    (one row per episode) as it is, a list of one action per episode stacked when the entries share a real
+    dtype and a shape (the same values), any other list entry by entry through check_action, whose error
+    names the bad entry."""
+    if isinstance(actions, np.ndarray):
+        return actions
+    try:
+        stacked = np.asarray(actions)
+    except ValueError:  # entries of unequal shapes
+        stacked = None
+    if stacked is None or stacked.dtype.kind not in "fiu" or stacked.shape not in ((n,), (n, 1)):
+        return np.array([check_action(u, 1)[0] for u in actions])
+    return stacked
 
 
 def _run_together(
