@@ -218,9 +218,8 @@ def robustness_figure(table: list[dict[str, Any]], scenario: str) -> Any:
             panel.plot(x, [r["mean"] for r in rs], "o-", ms=3, color=colours[name], label=name)
             lo, hi = [r["ci_low"] for r in rs], [r["ci_high"] for r in rs]
             panel.fill_between(x, lo, hi, alpha=0.18, color=colours[name])
-        nominal = 1.0 if a.key.endswith("_scale") else 0.0 if a.key == "asymmetry_shift" else None
-        if nominal is not None:  # (the delay axis's nominal is the preset's own delay)
-            panel.axvline(nominal, color="0.6", lw=0.8, ls=":")
+        if a.nominal is not None:
+            panel.axvline(a.nominal, color="0.6", lw=0.8, ls=":")
         panel.set(title=a.label, xlabel=a.key, yscale="log")
         if j % cols == 0:
             panel.set_ylabel(table[0]["metric"])

@@ -44,12 +44,14 @@ SEED_RANGE = (SEEDS, _LAST + 1)  # every seed the study uses, [first, end)
 
 @dataclass(frozen=True)
 class Axis:
-    """A shifted parameter: a randomization key over [low, high] (delay: fractions of the period)."""
+    """A shifted parameter: a randomization key over [low, high] (delay: fractions of the period), and
+    its value on the nominal plant (None: the preset's own, the delay)."""
 
     key: str
     low: float
     high: float
     label: str
+    nominal: float | None = None
 
     def values(self, points: int, period: float) -> list[float]:
         grid = np.linspace(self.low, self.high, points)
@@ -61,12 +63,12 @@ class Axis:
 
 
 AXES = (
-    Axis("friction_scale", 0.5, 1.5, "friction level (x nominal)"),
-    Axis("asymmetry_shift", -0.25, 0.25, "asymmetry (shift / Coulomb level)"),
-    Axis("stribeck_velocity_scale", 0.5, 1.5, "Stribeck velocity (x nominal)"),
-    Axis("sigma0_scale", 0.5, 1.5, "bristle stiffness σ0 (x nominal)"),
-    Axis("viscous_scale", 0.5, 1.5, "viscous friction (x nominal)"),
-    Axis("inertia_scale", 0.5, 1.5, "inertia (x nominal)"),
+    Axis("friction_scale", 0.5, 1.5, "friction level (x nominal)", 1.0),
+    Axis("asymmetry_shift", -0.25, 0.25, "asymmetry (shift / Coulomb level)", 0.0),
+    Axis("stribeck_velocity_scale", 0.5, 1.5, "Stribeck velocity (x nominal)", 1.0),
+    Axis("sigma0_scale", 0.5, 1.5, "bristle stiffness σ0 (x nominal)", 1.0),
+    Axis("viscous_scale", 0.5, 1.5, "viscous friction (x nominal)", 1.0),
+    Axis("inertia_scale", 0.5, 1.5, "inertia (x nominal)", 1.0),
     Axis("delay_s", 0.0, 1.0, "delay (s; up to one control period)"),
 )
 

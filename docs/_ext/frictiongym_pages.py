@@ -242,13 +242,11 @@ and what is scored; a suite is a list of episodes (scenario, seed), the same for
 """
 
 
-def controllers_page() -> str:
+def controllers_page(scenarios: list) -> str:
     import importlib
 
     from frictiongym.agents import registry
-    from frictiongym.envs.scenario import load_scenario
 
-    scenarios = [load_scenario(n) for n in scenario_names()]
     rows, sources = [], {}
     for name, factory in registry.BUILTIN.items():
         target = factory.func if isinstance(factory, partial) else factory
@@ -305,7 +303,7 @@ def generate(_app: object = None) -> None:
         mine = [s for s in scenarios if s.spec.name == cls.plant]
         write(OUT / "plants" / f"{cls.plant}.md", plant_page(env_id, cls, mine, suites))
     write(OUT / "scenarios.md", scenarios_page(scenarios, suites))
-    write(OUT / "controllers.md", controllers_page())
+    write(OUT / "controllers.md", controllers_page(scenarios))
     write(OUT / "api.md", api_page())
 
 

@@ -14,6 +14,7 @@ from .spec import JointSpec, PlantSpec
 # body adds to its dof (its rotational inertia for a hinge, its mass for a slide), so the total is the
 # preset's J (or M).
 VISUAL_MASS_KG, VISUAL_INERTIA = 1e-9, 1e-12  # kg, kg·m²
+BODY_SPACING, DISK_RADIUS = 0.25, 0.08  # m: the bodies side by side along x, a hinge's disk (visual)
 
 
 def body_share(j: JointSpec) -> float:
@@ -36,8 +37,7 @@ def to_mjcf(spec: PlantSpec) -> str:
     disturbance motor (its command is a torque in N·m)."""
     nsample = spec.substeps + 2  # history for delays up to one control period
     bodies, actuators, extra = [], [], []
-    for i, j in enumerate(spec.joints):
-        x = 0.25 * i
+    for j in spec.joints:
         coulomb = j.friction is not None and spec.friction_model == "coulomb"
         fl = j.friction.fc if coulomb else 0.0
         damping = j.viscous + j.friction.sigma2 if coulomb else j.viscous  # Coulomb + viscous
@@ -46,11 +46,11 @@ def to_mjcf(spec: PlantSpec) -> str:
             '<geom type="box" size="0.04 0.03 0.02" mass="0" rgba="0.6 0.6 0.7 1"/>'
             '<geom type="box" pos="0 0 0.022" size="0.01 0.03 0.002" mass="0" rgba="0.9 0.3 0.2 1"/>'
             if slide
-            else '<geom type="cylinder" size="0.08 0.01" mass="0" rgba="0.6 0.6 0.7 1"/>'
+            else f'<geom type="cylinder" size="{DISK_RADIUS} 0.01" mass="0" rgba="0.6 0.6 0.7 1"/>'
             '<geom type="box" pos="0.05 0 0.012" size="0.03 0.005 0.002" mass="0" rgba="0.9 0.3 0.2 1"/>'
         )
         bodies.append(
-            f'<body name="{j.name}" pos="{x} 0 0"><joint name="{j.name}" type="{j.kind}" '
+            f'<body name="{j.name}" pos="{body_x(spec, j.name)} 0 0"><joint name="{j.name}" type="{j.kind}" '
             f'axis="{"1 0 0" if slide else "0 0 1"}" armature="{j.inertia - body_share(j)!r}" '
             f'damping="{damping!r}" frictionloss="{fl!r}"/><inertial pos="0 0 0" mass="{VISUAL_MASS_KG!r}" '
             f'diaginertia="{VISUAL_INERTIA!r} {VISUAL_INERTIA!r} {VISUAL_INERTIA!r}"/>{shape}</body>'
@@ -117,9 +117,14 @@ FLOOR_Z = -0.12  # m, below the disks (at z = 0)
 STEEL, BELT = 'rgba="0.45 0.47 0.5 1"', 'rgba="0.15 0.15 0.15 1"'
 
 
+def body_x(spec: PlantSpec, joint: str) -> float:
+    """Where a joint's body sits along x (m): the bodies side by side in the spec's order."""
+    return BODY_SPACING * spec.joint_index(joint)
+
+
 def scenery(spec: PlantSpec) -> str:
     """The fixed, massless world geoms and the camera of a plant's frame (see SCENERY_ASSETS)."""
-    span = 0.25 * (len(spec.joints) - 1)  # m, from the first body to the last
+    span = BODY_SPACING * (len(spec.joints) - 1)  # m, from the first body to the last
     mid = span / 2
     parts = [
         f'<light pos="{mid} -0.3 1.0" dir="0 0.3 -1"/>',
@@ -129,23 +134,24 @@ def scenery(spec: PlantSpec) -> str:
         f'xyaxes="1 0 0 0 0.6 0.8"/>',
     ]
     h = (-FLOOR_Z - 0.01) / 2  # half height of a stand, floor to disk
-    for i, j in enumerate(spec.joints):
-        x = 0.25 * i
+    for j in spec.joints:
+        x = body_x(spec, j.name)
         if j.kind == "slide":  # a rail along the carriage's travel
-            parts.append(f'<geom type="box" pos="0 0 -0.03" size="0.3 0.02 0.01" mass="0" {STEEL}/>')
+            parts.append(f'<geom type="box" pos="{x} 0 -0.03" size="0.3 0.02 0.01" mass="0" {STEEL}/>')
         else:
             parts.append(f'<geom type="cylinder" pos="{x} 0 {-0.01 - h}" size="0.012 {h}" mass="0" {STEEL}/>')
     for b in spec.belts:  # two straight runs between the pulleys
-        x0, x1 = (0.25 * [j.name for j in spec.joints].index(n) for n in (b.driver, b.driven))
+        x0, x1 = body_x(spec, b.driver), body_x(spec, b.driven)
         for y in (-0.07, 0.07):
             parts.append(
                 f'<geom type="box" pos="{(x0 + x1) / 2} {y} 0" size="{abs(x1 - x0) / 2} 0.004 0.008" '
                 f'mass="0" {BELT}/>'
             )
     for sp in spec.springs:  # the shaft between the two inertias
-        x0, x1 = (0.25 * [j.name for j in spec.joints].index(n) for n in (sp.a, sp.b))
+        x0, x1 = body_x(spec, sp.a), body_x(spec, sp.b)
         parts.append(
-            f'<geom type="capsule" fromto="{x0 + 0.08} 0 0 {x1 - 0.08} 0 0" size="0.006" mass="0" '
+            f'<geom type="capsule" fromto="{x0 + DISK_RADIUS} 0 0 {x1 - DISK_RADIUS} 0 0" size="0.006" '
+            'mass="0" '
             'rgba="0.95 0.6 0.1 1"/>'
         )
     return "".join(parts)
