@@ -219,22 +219,6 @@ class Ray:
     max_retries: int = 3
 
 
-def add_backend_arguments(ap: Any) -> None:
-    """--workers, --backend and --address of the scripts that run engine jobs (argparse)."""
-    ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
-    ap.add_argument("--backend", choices=["local", "ray"], default="local", help="process pool or Ray tasks")
-    ap.add_argument("--address", help="Ray cluster to join (default: a local Ray on --workers CPUs)")
-
-
-def backend_of(args: Any, ap: Any) -> Ray | None:
-    """The Ray backend the parsed arguments ask for (None: the local pool); bad combinations are errors."""
-    if args.workers < 1:
-        ap.error("--workers must be >= 1")
-    if args.address and args.backend != "ray":
-        ap.error("--address goes with --backend ray")
-    return Ray(args.address) if args.backend == "ray" else None
-
-
 def ray_init(workers: int, address: str | None) -> None:
     import ray
 

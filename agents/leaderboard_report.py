@@ -207,8 +207,48 @@ def answer_rows(board: Board) -> dict[str, list[dict]]:
         count = f"{len(wins)} of {len(other)}" if other else "n/a"
         limit = by.get("TrackingLimit") or by.get("Ideal")
         cells = [cell(base), cell(best), verdict, count, cell(by.get("Ideal")), cell(limit)]
-        by_plant.setdefault(s.spec.name, []).append({"scenario": f"{sc} ({s.main_metric})", "cells": cells})
+        by_plant.setdefault(s.spec.name, []).append(
+            {
+                "scenario": f"{sc} ({s.main_metric})",
+                "cells": cells,
+                "name": sc,
+                "baseline": base,
+                "best": best,
+                "wins": len(wins),
+                "entries": len(other),
+            }
+        )
     return by_plant
+
+
+def headline(board: Board) -> list[tuple[str, str, list[str]]]:
+    """The answer in a few lines, per plant: (plant, its verdict, a line per scenario a learned or
+    plug-in entry wins there, with both rows' main metric). The console, answer.md and the page open
+    with it."""
+    out = []
+    for plant, rows in answer_rows(board).items():
+        judged = [r for r in rows if r["entries"]]
+        won = [r for r in judged if r["wins"]]
+        if not judged:
+            verdict = "no learned or plug-in entry ran"
+        else:
+            verdict = f"a learned or plug-in entry beats the best classical on {len(won)} of {len(judged)}"
+            verdict += " scenarios"
+        lines = [
+            f"{r['name']}: {r['best']['controller']} {_fmt(r['best']['main'])} against "
+            f"{r['baseline']['controller']} {_fmt(r['baseline']['main'])}"
+            for r in won
+        ]
+        out.append((plant, verdict, lines))
+    return out
+
+
+def headline_text(board: Board) -> str:
+    """headline() as Markdown bullets."""
+    lines = []
+    for plant, verdict, wins in headline(board):
+        lines.append(f"- **{plant}**: {verdict}" + ("; " + "; ".join(wins) if wins else ""))
+    return "\n".join(lines)
 
 
 def answer(board: Board) -> str:
@@ -224,6 +264,10 @@ def answer(board: Board) -> str:
         "two limits (Ideal: friction removed under the uncompensated loop; TrackingLimit: the friction-free "
         "twin under the linear two-degree-of-freedom loop, Ideal at a set-point). Mean [95 % interval] of "
         "the main metric, lower is better.",
+        "",
+        "## The answer",
+        "",
+        headline_text(board),
     ]
     for plant, rows in answer_rows(board).items():
         lines += [

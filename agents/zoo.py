@@ -19,7 +19,6 @@ from typing import Any
 
 import gymnasium as gym
 import yaml
-from gymnasium.envs import registration
 
 from frictiongym.envs.config import ConfigError
 
@@ -163,7 +162,7 @@ def validate(
     its files are pickles (zoo_policy): only with trust_pickle."""
 
     spec = gym.spec(env_id)  # a per-scenario id carries its scenario; a per-plant id its default
-    default = spec.kwargs.get("scenario") or registration.load_env_creator(spec.entry_point).default_scenario
+    default = spec.kwargs.get("scenario") or spec.scenario  # envs.ScenarioSpec
     scenario = zoo_env_kwargs(run).get("scenario") or default
     eps = validation_episodes(scenario)[:episodes]
     envs = EnvCache()

@@ -4,7 +4,8 @@ Importing this package registers two kinds of Gymnasium id (`frictiongym list` p
 
 - one per plant, frictiongym/M220-v0, frictiongym/FlexibleServo-v0, frictiongym/KangRobot-v0 and
   frictiongym/EMPS-v0, taking scenario= (default: the plant's default scenario) and keyword overrides.
-  Their spec has no max_episode_steps: the env ends its own episode (truncated) at its scenario's end.
+  Their max_episode_steps is the default scenario's length; a scenario= or episode_s= whose episode is
+  longer is refused in one line naming the per-scenario id to use (its TimeLimit would cut the episode).
 - one per scenario, e.g. frictiongym/M220-ReversalTracking-v0 for m220_reversal_tracking (the plant's
   name, then the scenario's name without its plant prefix), whose max_episode_steps is that scenario's
   episode length, so TimeLimit, TimeAwareObservation and anything reading env.spec agree with the env.
@@ -16,18 +17,12 @@ max_episode_steps=N) with N below the scenario's length truncates earlier.
 
 from __future__ import annotations
 
-import logging
 from functools import cache
 from typing import Any
 
 import gymnasium as gym
-import mujoco
 from gymnasium.envs import registration
 from gymnasium.envs.registration import EnvSpec
-
-# MuJoCo writes its warnings to MUJOCO_LOG.TXT in the working directory; route them to Python logging
-# instead (a divergence is reported per episode through info["diverged"]).
-mujoco.set_mju_user_warning(lambda msg: logging.getLogger("frictiongym.mujoco").warning(msg))
 
 ENV_IDS = {  # id -> (single env, vector env over mujoco.batch for gym.make_vec)
     "frictiongym/M220-v0": ("servo_env:M220Env", "vector:m220_vector"),
@@ -49,6 +44,37 @@ PREFIXES = {  # a scenario file's name starts with its plant's prefix (tests che
 @cache
 def _env_class(entry: str) -> Any:
     return registration.load_env_creator(f"frictiongym.envs.{entry}")
+
+
+def plant_env(id_: str, **kwargs: Any) -> gym.Env:
+    """A per-plant id's env (its registered entry point, through one function per id below): the plant's
+    env class with the make's keywords, refused in one line if its episode is longer than the id's
+    TimeLimit (the default scenario's length), which would cut it short."""
+    env = _env_class(ENV_IDS[id_][0])(**kwargs)
+    limit, steps = gym.spec(id_).max_episode_steps, env.scenario.episode_steps
+    if limit is not None and steps > limit:
+        env.close()
+        name = env.scenario.name
+        use = (
+            f"gym.make({scenario_env_id(name)!r}, ...)"
+            if name in SCENARIO_IDS.values()
+            else f"gymnasium.wrappers.TimeLimit({type(env).__name__}(scenario=...), {steps})"
+        )
+        raise ValueError(
+            f"{id_}: this episode is {steps} steps, longer than the id's TimeLimit of {limit} (its default "
+            f"scenario's length), which would cut it short; use {use}"
+        )
+    return env
+
+
+def _plant_entry(id_: str) -> str:
+    """The name of the module-level function that makes a per-plant id's env (an entry point must be a
+    string for specs to round-trip through JSON and pickle)."""
+    return "make_" + id_.split("/")[1].split("-")[0].lower()
+
+
+for _id in ENV_IDS:
+    globals()[_plant_entry(_id)] = lambda _i=_id, **kwargs: plant_env(_i, **kwargs)
 
 
 @cache
@@ -89,17 +115,30 @@ class ScenarioSpec(EnvSpec):
         self._fixed_steps = value
 
 
+class PlantIdSpec(ScenarioSpec):
+    """The spec of a per-plant id: its scenario is the plant's default one, read from the env class the
+    first time it is asked for (importing the package imports no MuJoCo: a command's --help)."""
+
+    plant_entry: str = ""
+
+    @property
+    def scenario(self) -> str:  # type: ignore[override]
+        return _env_class(self.plant_entry).default_scenario
+
+
 def _register() -> dict[str, str]:
     """Register every id (the per-plant ones, then one per scenario); returns {scenario id: scenario}."""
-    from .scenario import scenario_names  # configs/scenarios/*.yaml, listed, not loaded
+    from .config import scenario_names  # configs/scenarios/*.yaml, listed, not loaded
 
     for id_, (entry, vector) in ENV_IDS.items():
         if id_ not in gym.registry:
-            gym.registry[id_] = EnvSpec(
+            plant = PlantIdSpec(
                 id=id_,
-                entry_point=f"frictiongym.envs.{entry}",
+                entry_point=f"frictiongym.envs:{_plant_entry(id_)}",
                 vector_entry_point=f"frictiongym.envs.{vector}",
             )
+            plant.plant_entry = entry
+            gym.registry[id_] = plant
     out = {}
     for scenario in scenario_names():
         id_ = scenario_env_id(scenario)

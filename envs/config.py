@@ -80,6 +80,11 @@ def plant_names() -> list[str]:
     return preset_names("plants")
 
 
+def scenario_names() -> list[str]:
+    """Names of the scenarios under configs/scenarios/ (not the shared defaults file)."""
+    return preset_names("scenarios")
+
+
 def preset_path(name_or_path: str | Path, kind: str) -> Path:
     """configs/<kind>/<name>.yaml for a name, or the path itself for a .yaml path."""
     if not isinstance(name_or_path, str | Path) or not str(name_or_path):

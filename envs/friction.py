@@ -48,6 +48,9 @@ from .config import ConfigError, nonneg, positive
 
 FRICTION_MODELS = ("lugre", "dahl", "maxwell_slip", "kang", "coulomb", "viscous", "none")
 BRISTLE_MODELS = ("lugre", "dahl", "maxwell_slip", "kang")  # carried by native LuGre elements (dcmotor lugre)
+# the structures with a friction level of their own: the sim-to-real study's structural axis and the
+# reproduction's native plants (viscous and none have no Coulomb level to shift or compare)
+STRUCTURES = (*BRISTLE_MODELS, "coulomb")
 # Kang's stick-slip model (Kang 1998 eq. 1-4, after Karnopp 1985): the static level holds within a stick band
 # of this fraction of the preset's Stribeck velocity (Kang: 0.01 deg/s, a fifth of §6's 0.05 deg/s
 # identification ramp), the Coulomb level outside it

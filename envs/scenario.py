@@ -28,7 +28,6 @@ from .config import (
     load_extending,
     merge,
     number,
-    preset_names,
     preset_path,
 )
 from .friction import BRISTLE_MODELS, FRICTION_MODELS, FrictionDrift
@@ -68,11 +67,6 @@ MIN_ACTION_SCALE_FRACTION = 1e-6  # an action may not scale to less than a milli
 # linear g = (m_unc - m)/(m_unc - m_ideal); log: decades, log10(m_unc/m)/log10(m_unc/m_ideal), where the
 # friction-free loop reaches ~0; none: not scored (friction costs the uncompensated loop nothing).
 LIMIT_SCORES = ("linear", "log", "none")
-
-
-def scenario_names() -> list[str]:
-    """Names of the scenarios under configs/scenarios/ (not the shared defaults file)."""
-    return preset_names("scenarios")
 
 
 @dataclass(frozen=True)

@@ -7,8 +7,7 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass
 
-from .config import ConfigError, Node, boolean, configs_dir, integer, load_yaml
-from .scenario import scenario_config, scenario_names
+from .config import ConfigError, Node, boolean, configs_dir, integer, load_yaml, scenario_names
 
 FILE = "suites.yaml"
 RANGES = "seed_ranges"  # the file's table of seed ranges; every other top-level key is a suite
@@ -87,6 +86,8 @@ def load_suite(name: str) -> list[Episode]:
     s = _suite(name)
     randomize = s.boolean("randomize")
     held_out = s.boolean("held_out", default=False)
+    from .scenario import scenario_config  # start-up cost: a command's --help lists suites, loads none
+
     known = scenario_names()
     scenarios = s["scenarios"]
     if not isinstance(scenarios, list) or not scenarios:

@@ -10,7 +10,7 @@ The bare loops step the same physics as the env: they start from the env's initi
 again from it when an episode would end. (A fresh MjData at exact rest steps measurably faster than the
 same model in an episode's state, ~1 µs of 27 µs on the M220, which is not the env's overhead.)
 
-    python scripts/bench_envs.py [--scenarios kang_regulation ...] [--seconds 2]
+    frictiongym bench-envs [--scenarios kang_regulation ...] [--seconds 2]
                                  [--friction-models lugre maxwell_slip ...]
 
 With several friction structures (envs/friction.py), each scenario is measured on each of them, and the
@@ -19,20 +19,20 @@ env steps/s of every structure relative to LuGre's, on the same scenario in the 
 
 from __future__ import annotations
 
-import argparse
 import time
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
-import gymnasium as gym
-import mujoco
 import numpy as np
-from mujoco.batch import Batch
 
-import frictiongym.envs  # noqa: F401
-from frictiongym.envs.core import ServoCore
 from frictiongym.envs.friction import FRICTION_MODELS
-from frictiongym.envs.servo_env import ServoEnv
-from frictiongym.envs.vector import ServoVectorEnv
+from frictiongym.scripts.options import parser
+
+if TYPE_CHECKING:  # start-up cost: --help imports no MuJoCo; the functions import what they time
+    import gymnasium as gym
+    import mujoco
+
+    from frictiongym.envs.core import ServoCore
 
 
 def _once(fn: Callable[[], None], seconds: float) -> float:
@@ -75,6 +75,8 @@ def stepper(env: gym.Env) -> Callable[[], None]:
 
 def bare_single(core: ServoCore) -> tuple[Callable[[], None], mujoco.MjData]:
     """The bare loop for a single env's core (after its reset): one step and the MjData it steps."""
+    import mujoco
+
     model, start, data = core.model, mujoco.MjData(core.model), mujoco.MjData(core.model)
     mujoco.mj_copyData(start, model, core.backend.data)  # the env's state after its reset
     mujoco.mj_copyData(data, model, start)
@@ -96,6 +98,9 @@ def bare_single(core: ServoCore) -> tuple[Callable[[], None], mujoco.MjData]:
 def bare_vector(core: ServoCore) -> tuple[Callable[[], None], np.ndarray]:
     """The bare loop for a vector env's core (after its reset): one step of a Batch of as many
     simulations, and the Batch's qpos."""
+    import mujoco
+    from mujoco.batch import Batch
+
     num_envs = core.n
     batch = Batch(core.model, num_envs)
     ctrl, qpos, qvel = batch.bind("ctrl"), batch.bind("qpos"), batch.bind("qvel")
@@ -119,6 +124,8 @@ def bare_vector(core: ServoCore) -> tuple[Callable[[], None], np.ndarray]:
 
 
 def bench_single(scenario: str, seconds: float, overrides: dict | None = None) -> tuple[float, float]:
+    from frictiongym.envs.servo_env import ServoEnv
+
     env = ServoEnv(scenario, overrides=overrides)
     env_step = stepper(env)  # resets with seed 0 first
     return paired(env_step, bare_single(env.core)[0], seconds)
@@ -127,6 +134,8 @@ def bench_single(scenario: str, seconds: float, overrides: dict | None = None) -
 def bench_vector(
     scenario: str, num_envs: int, seconds: float, overrides: dict | None = None
 ) -> tuple[float, float]:
+    from frictiongym.envs.vector import ServoVectorEnv
+
     venv = ServoVectorEnv(scenario, num_envs, overrides=overrides)
     venv.reset(seed=0)
     actions = np.zeros((num_envs, 1), dtype=np.float32)
@@ -134,12 +143,21 @@ def bench_vector(
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = parser(__doc__)
     ap.add_argument(
-        "--scenarios", nargs="*", default=["kang_regulation", "m220_regulation", "flexible_speed_step"]
+        "--scenarios",
+        nargs="*",
+        default=["kang_regulation", "m220_regulation", "flexible_speed_step"],
+        help="the scenarios whose envs are timed",
     )
     ap.add_argument("--seconds", type=float, default=4.0, help="measuring time per pair of figures")
-    ap.add_argument("--friction-models", nargs="+", default=["lugre"], choices=FRICTION_MODELS)
+    ap.add_argument(
+        "--friction-models",
+        nargs="+",
+        default=["lugre"],
+        choices=FRICTION_MODELS,
+        help="the friction structures",
+    )
     args = ap.parse_args()
     print(f"{'scenario':36s} {'what':10s} {'env steps/s':>12s} {'bare steps/s':>13s} {'ratio':>6s}")
     for sc in args.scenarios:
@@ -155,6 +173,8 @@ def main() -> None:
                 if model == "lugre":
                     lugre[what] = e
     try:
+        import gymnasium as gym
+
         pstep = stepper(gym.make("InvertedPendulum-v5"))
         print(f"{'InvertedPendulum-v5':24s} {'single':10s} {rate(pstep, args.seconds):12.0f}")
     except Exception as err:  # Gymnasium's MuJoCo envs are optional

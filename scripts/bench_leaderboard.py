@@ -4,7 +4,7 @@ with --ray on a local Ray with 1 and N workers, and with --models on N workers w
 those folders added (the default leaderboard's own run: target at most 1.3x the classical-only time),
 measured side by side in one run.
 
-    python scripts/bench_leaderboard.py [--workers 2] [--ray] [--no-serial]
+    frictiongym bench-leaderboard [--workers 2] [--ray] [--no-serial]
         [--models agents/models/specialist agents/models/generalist]
 
 Prints the physics floor first (the suite's physics steps per plant times a bare mj_step loop's time per
@@ -15,18 +15,19 @@ most 15 % slower than the pool) and whether every episodes.csv is byte-identical
 
 from __future__ import annotations
 
-import argparse
 import os
 import tempfile
 import time
 from collections import Counter
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import mujoco
+from frictiongym.scripts.options import parser
 
-from frictiongym.agents import engine, registry
-from frictiongym.agents.evaluate import EnvCache
-from frictiongym.envs.suites import load_suite
+if TYPE_CHECKING:  # start-up cost: --help imports no MuJoCo or engine; the functions import what they run
+    import mujoco
+
+    from frictiongym.agents import engine
 
 PHYSICS_STEPS = 20000  # steps per timing of the bare mj_step loop (best of 5)
 
@@ -35,6 +36,12 @@ def physics_floor(workers: int) -> float:
     """Print and return the default suite's bare mj_step time on `workers` cores (s): per plant, the
     physics steps of every applicable (controller, episode) job times the best time per step of a bare
     mj_step loop of the plant's model."""
+    import mujoco
+
+    from frictiongym.agents import registry
+    from frictiongym.agents.evaluate import EnvCache
+    from frictiongym.envs.suites import load_suite
+
     envs, steps, model = EnvCache(), Counter(), {}
     controllers = [registry.make(n) for n in [*registry.BUILTIN, *registry.LIMITS]]
     for e in load_suite("default"):
@@ -55,6 +62,8 @@ def physics_floor(workers: int) -> float:
 
 
 def _timed_steps(m: mujoco.MjModel, d: mujoco.MjData) -> float:
+    import mujoco
+
     t0 = time.perf_counter()
     mujoco.mj_step(m, d, PHYSICS_STEPS)
     return time.perf_counter() - t0
@@ -65,6 +74,9 @@ def timed(
 ) -> tuple[float, int]:
     """Wall time of the default suite into out (for Ray: including the start of its local instance), with
     the saved models of `models` added to the built-in controllers."""
+    from frictiongym.agents import engine, registry
+    from frictiongym.envs.suites import load_suite
+
     episodes = load_suite("default")
     t0 = time.perf_counter()
     names = registry.default_entries(models)  # the built-ins, the references, then the models
@@ -73,12 +85,14 @@ def timed(
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--workers", type=int, default=os.cpu_count() or 2)
+    ap = parser(__doc__)
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 2, help="processes of the pool runs")
     ap.add_argument("--ray", action="store_true", help="also the Ray backend (pip install -e .[distributed])")
     ap.add_argument("--models", nargs="+", default=[], help="also the suite with these saved-model folders")
     ap.add_argument("--no-serial", dest="serial", action="store_false", help="skip the 1-worker run")
     args = ap.parse_args()
+    from frictiongym.agents import engine
+
     physics_floor(args.workers)
     with tempfile.TemporaryDirectory() as d:
         times = {"serial": timed(1, Path(d) / "serial")} if args.serial else {}

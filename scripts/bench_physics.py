@@ -1,23 +1,25 @@
 """Physics speed per plant: steps/s of the full model (LuGre friction, delay buffer) and its ratio to a
 bare mj_step(nstep) loop of the same model with friction removed, measured side by side in one run.
 
-    python scripts/bench_physics.py [--seconds 1.0]
+    frictiongym bench-physics [--seconds 1.0]
 """
 
 from __future__ import annotations
 
-import argparse
 import time
-
-import mujoco
+from typing import TYPE_CHECKING
 
 from frictiongym.envs.config import plant_names
-from frictiongym.envs.plants import plant_spec
-from frictiongym.envs.plants.mjcf import to_mjcf
+from frictiongym.scripts.options import parser
+
+if TYPE_CHECKING:
+    import mujoco
 
 
 def steps_per_second(model: mujoco.MjModel, seconds: float, nstep: int = 1000) -> float:
     """Best of 5 repetitions of mj_step(nstep) calls lasting ~seconds/5 each."""
+    import mujoco
+
     data = mujoco.MjData(model)
     best = 0.0
     for _ in range(5):
@@ -30,9 +32,14 @@ def steps_per_second(model: mujoco.MjModel, seconds: float, nstep: int = 1000) -
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = parser(__doc__)
     ap.add_argument("--seconds", type=float, default=1.0, help="measuring time per model")
     args = ap.parse_args()
+    import mujoco  # start-up cost: --help imports no MuJoCo
+
+    from frictiongym.envs.plants import plant_spec
+    from frictiongym.envs.plants.mjcf import to_mjcf
+
     print(f"{'plant':16s} {'full steps/s':>14s} {'bare steps/s':>14s} {'ratio':>7s}")
     for name in plant_names():
         full = mujoco.MjModel.from_xml_string(to_mjcf(plant_spec(name)))

@@ -3,7 +3,7 @@ period: per committed model (numpy and onnxruntime networks) and per classical f
 time per step (median, 99th percentile and maximum over --steps steps, one thread, this process on one
 core), the step's readings a sine through the plant's range.
 
-    python scripts/bench_runtime.py [--steps 100000] [--out out/bench_runtime.csv]
+    frictiongym bench-runtime [--steps 100000] [--out out/bench_runtime.csv]
 
 Prints one row per (controller, backend) with the times in µs and the share of the control period the
 99th percentile takes; writes the rows as CSV.
@@ -11,7 +11,6 @@ Prints one row per (controller, backend) with the times in µs and the share of 
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -23,6 +22,7 @@ import numpy as np
 from tqdm import tqdm
 
 from frictiongym.envs.records import atomic_text, csv_text, missing_extra
+from frictiongym.scripts.options import parser
 
 CLASSICAL = {  # a classical family on a scenario of each plant it runs on
     "PID": "kang_ramp",
@@ -62,9 +62,9 @@ def time_steps(runtime, steps: int) -> np.ndarray:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = parser(__doc__)
     ap.add_argument("--steps", type=int, default=100_000, help="steps timed per controller and backend")
-    ap.add_argument("--out", type=Path, default=Path("out/bench_runtime.csv"))
+    ap.add_argument("--out", type=Path, default=Path("out/bench_runtime.csv"), help="the table (CSV)")
     args = ap.parse_args(argv)
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     try:

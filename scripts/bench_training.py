@@ -2,7 +2,7 @@
 trained on one scenario of a training config from the same seeds, each run for the same training time
 (--budget-s; validation excluded), on a pool of --workers processes (one run per core, one torch thread).
 
-    python scripts/bench_training.py residual_sac --scenario m220_reversal_tracking [--seeds 0]
+    frictiongym bench-training residual_sac --scenario m220_reversal_tracking [--seeds 0]
                                      [--budget-s 240] [--workers 2] [--only SETUP ...] [--out DIR]
 
 Prints per setup and seed: env steps/s and gradient steps/s (over the training time), time-to-beat (the
@@ -17,7 +17,6 @@ time is not training time); a plain training run validates beside the training (
 
 from __future__ import annotations
 
-import argparse
 import math
 import multiprocessing as mp
 import os
@@ -28,9 +27,9 @@ from typing import Any
 
 from tqdm import tqdm
 
-from frictiongym.agents.engine import init_worker, run_interruptibly
 from frictiongym.envs.config import ConfigError, Node, configs_dir, load_yaml
 from frictiongym.envs.records import atomic_text, command_line, csv_text, missing_extra
+from frictiongym.scripts.options import parser
 
 
 def load_setups(path: Path) -> tuple[float, dict[str, tuple[str | None, dict[str, Any]]]]:
@@ -123,15 +122,20 @@ def report(rows: list[dict[str, Any]], order: list[str], budget: float) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = parser(__doc__)
     ap.add_argument("config", help="a training config (name of configs/agents/ or a path)")
-    ap.add_argument("--scenario", required=True)
-    ap.add_argument("--setups", type=Path, default=configs_dir() / "bench" / "training.yaml")
+    ap.add_argument("--scenario", required=True, help="the scenario trained on")
+    ap.add_argument(
+        "--setups",
+        type=Path,
+        default=configs_dir() / "bench" / "training.yaml",
+        help="the learners and settings compared (default: configs/bench/training.yaml)",
+    )
     ap.add_argument("--only", nargs="+", help="these setups of the file (the first is the ratios' reference)")
-    ap.add_argument("--seeds", type=int, nargs="+", default=[0])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0], help="training seeds")
     ap.add_argument("--budget-s", type=float, help="training time per run, s (default: the file's)")
-    ap.add_argument("--workers", type=int, default=os.cpu_count() or 2)
-    ap.add_argument("--out", type=Path, default=Path("out/bench_training"))
+    ap.add_argument("--workers", type=int, default=os.cpu_count() or 2, help="runs at a time (processes)")
+    ap.add_argument("--out", type=Path, default=Path("out/bench_training"), help="the runs' folder")
     args = ap.parse_args(argv)
     try:
         from frictiongym.agents.training import run_config_with  # the rl extra: named if missing
@@ -166,6 +170,7 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     rows: list[dict[str, Any]] = []
     order = list(setups)
+    from frictiongym.agents.engine import init_worker, run_interruptibly  # start-up cost: after --help
 
     def run() -> int:
 

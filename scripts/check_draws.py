@@ -2,31 +2,33 @@
 that reset would reject (the numerics and physical checks); the ranges are checked at their corners at
 load, so every count should be 0. Exits with status 1 if any draw is rejected.
 
-    python scripts/check_draws.py [--seeds 100000] [--workers 2]
+    frictiongym check-draws [--seeds 100000] [--workers 2]
 """
 
 from __future__ import annotations
 
-import argparse
 import sys
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing import get_context
 
 from tqdm import tqdm
 
-from frictiongym.envs.config import plant_names
-from frictiongym.envs.plants import plant_spec
-from frictiongym.envs.plants.params import rejected_draws
-from frictiongym.envs.scenario import load_scenario, scenario_names
+from frictiongym.envs.config import plant_names, scenario_names
+from frictiongym.scripts.options import parser
 
 CHUNK = 5000  # seeds per job
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = parser(__doc__)
     ap.add_argument("--seeds", type=int, default=100_000, help="seeds 0 .. N-1 per preset and scenario")
-    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--workers", type=int, default=2, help="processes")
     args = ap.parse_args()
+    # start-up cost: --help imports no MuJoCo
+    from frictiongym.envs.plants import plant_spec
+    from frictiongym.envs.plants.params import rejected_draws
+    from frictiongym.envs.scenario import load_scenario
+
     if args.seeds < 1 or args.workers < 1:
         ap.error("--seeds and --workers must be at least 1")
     specs = {f"plant {p}": plant_spec(p) for p in plant_names()}

@@ -13,6 +13,7 @@ import ast
 import importlib
 import importlib.util
 import sys
+import textwrap
 from pathlib import Path
 
 from frictiongym.envs.records import package_version
@@ -39,21 +40,28 @@ COMMANDS = {  # subcommand -> module of frictiongym.scripts
     "bench-leaderboard": "bench_leaderboard",
     "bench-training": "bench_training",
     "bench-runtime": "bench_runtime",
+    "bench-cli": "bench_cli",
 }
 
 
 def summary(command: str) -> str:
-    """The first line of the command's module docstring, read without importing it (train imports torch)."""
+    """The first sentence of the command's module docstring, whole, read without importing the module
+    (train imports torch)."""
     spec = importlib.util.find_spec(f"{__package__}.{COMMANDS[command]}")
     doc = ast.get_docstring(ast.parse(Path(spec.origin).read_text())) or ""
     first = " ".join(doc.split("\n\n")[0].split())  # the first paragraph, on one line
-    sentence = first.split(". ")[0].split(": ")[0].rstrip(".:")
-    return sentence if len(sentence) <= 90 else sentence[:89] + "…"
+    return first.split(". ")[0].split(": ")[0].rstrip(".:")
 
 
 def usage() -> str:
+    """The top-level help: every command with its whole summary, wrapped under its name."""
     width = max(map(len, COMMANDS))
-    lines = [f"  {c:<{width}}  {summary(c)}" for c in COMMANDS]
+    lines = [
+        textwrap.fill(
+            summary(c), 100, initial_indent=f"  {c:<{width}}  ", subsequent_indent=" " * (width + 4)
+        )
+        for c in COMMANDS
+    ]
     head = "usage: frictiongym COMMAND [options]  (frictiongym COMMAND --help)\n\ncommands:\n"
     return head + "\n".join(lines)
 
@@ -79,3 +87,7 @@ def main(argv: list[str] | None = None) -> int:
         return module.main() or 0
     finally:
         sys.argv = saved
+
+
+if __name__ == "__main__":
+    sys.exit(main())

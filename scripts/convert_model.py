@@ -10,21 +10,22 @@ folder (DEST/<name>/) holds no pickle and can be shared and loaded safely (docs/
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
-from frictiongym.agents.model_convert import convert_folder
+from frictiongym.scripts.options import parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = parser(__doc__)
     ap.add_argument("src", nargs="+", type=Path, help="model folders of the SB3 form")
     ap.add_argument("--out", type=Path, required=True, help="folder to write the converted folders into")
     ap.add_argument(
         "--trust-pickle", action="store_true", help="load the SB3 zip and pickle (they can run code)"
     )
     args = ap.parse_args(argv)
+    from frictiongym.agents.model_convert import convert_folder  # start-up cost: after --help
+
     root = Path.cwd()
     for src in args.src:
         try:

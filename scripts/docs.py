@@ -9,11 +9,12 @@ Open OUT/index.html; the leaderboard page is OUT/leaderboard/index.html.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from html.parser import HTMLParser
 from pathlib import Path
 from urllib.parse import unquote, urlsplit
+
+from frictiongym.scripts.options import parser
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
@@ -70,7 +71,7 @@ def build(out: Path, linkcheck: bool = False) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = parser(__doc__)
     ap.add_argument("--out", type=Path, default=Path("build/docs"), help="the site's folder")
     ap.add_argument("--linkcheck", action="store_true", help="also check external links (network)")
     args = ap.parse_args(argv)

@@ -11,18 +11,18 @@ ONNX. Load it with frictiongym.agents.runtime.Runtime.load(DIR) and call step(re
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 from frictiongym.envs.records import missing_extra
+from frictiongym.scripts.options import parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = parser(__doc__)
     ap.add_argument("source", help="a controller's name (e.g. PID+FF) or a saved model's folder")
     ap.add_argument("--scenario", help="the scenario to run on (default: a saved model's own)")
-    ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--out", type=Path, required=True, help="the artefact's folder (created)")
     args = ap.parse_args(argv)
     try:
         from frictiongym.agents.runtime import export  # onnx (the deploy extra) for a learned controller

@@ -1,13 +1,13 @@
 """Identify a plant's friction from data, and write the override the envs load.
 
-    python scripts/identify.py step     (--csv LOG --step-v V | --simulate PLANT [--seed N] [--randomize]
+    frictiongym identify step     (--csv LOG --step-v V | --simulate PLANT [--seed N] [--randomize]
                                          | --document) [--out DIR]
-    python scripts/identify.py friction (--csv HOLDS [--min-speed RAD_S] | --simulate PLANT ... | --document)
-    python scripts/identify.py lugre    (--csv HOLDS [--breakaway CSV THRESHOLD]
+    frictiongym identify friction (--csv HOLDS [--min-speed RAD_S] | --simulate PLANT ... | --document)
+    frictiongym identify lugre    (--csv HOLDS [--breakaway CSV THRESHOLD]
                                          [--presliding CSV AMPLITUDE HZ] | --simulate PLANT ...) [--out DIR]
-    python scripts/identify.py recovery [--draws 20] [--out DIR]
-    python scripts/identify.py idim     [--csv ESTIMATION [--validation LOG]] [--delays 0 1] [--out DIR]
-    python scripts/identify.py check    [--csv LOG --plant PRESET] [--controller LabPD]
+    frictiongym identify recovery [--draws 20] [--out DIR]
+    frictiongym identify idim     [--csv ESTIMATION [--validation LOG]] [--delays 0 1] [--out DIR]
+    frictiongym identify check    [--csv LOG --plant PRESET] [--controller LabPD]
                                         [--scan sigma0_n_per_m|delay_s VALUE ...] [--out DIR]
 
 idim: inverse-model identification (IDIM-LS, EMPS §3) of a drive from closed-loop logs: every friction
@@ -24,7 +24,7 @@ and/or speed_rad_s|speed_deg_s, and for holds/ramps a segment column (one per ho
 speed_reference_rad_s (docs/identification.md). --simulate runs the same experiments on a plant of the
 suite (randomised with --randomize) and saves their logs. --document uses the M220's own data (Iurian et al.
 2005 §2.2-2.3). Writes DIR/report.md, result.json, fit plots and identified.yaml:
-    gym.make("frictiongym/M220-v0", scenario=..., overrides=yaml.safe_load(open("DIR/identified.yaml")))
+    gym.make("frictiongym/M220-<Scenario>-v0", overrides=yaml.safe_load(open("DIR/identified.yaml")))
 """
 
 from __future__ import annotations
@@ -33,15 +33,16 @@ import argparse
 import sys
 from pathlib import Path
 
-from frictiongym.agents.lab import drive_workflow
-from frictiongym.agents.lab.experiment_workflow import IdentifyOptions, recovery, run
 from frictiongym.envs.config import ConfigError, plant_names
 from frictiongym.envs.records import atomic_text
+from frictiongym.scripts.options import parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("kind", choices=["step", "friction", "lugre", "recovery", "idim", "check"])
+    ap = parser(__doc__)
+    ap.add_argument(
+        "kind", choices=["step", "friction", "lugre", "recovery", "idim", "check"], help="what to identify"
+    )
     src = ap.add_mutually_exclusive_group()
     src.add_argument("--csv", type=Path, help="a hardware (or any) log: a step, or speed holds")
     src.add_argument("--simulate", choices=plant_names(), help="run the experiments on this simulated plant")
@@ -71,8 +72,11 @@ def main(argv: list[str] | None = None) -> int:
         metavar=("KNOB", "VALUE"),
         help="check: repeat over values of sigma0_n_per_m or delay_s (e.g. --scan delay_s 0 0.0005 0.001)",
     )
-    ap.add_argument("--out", type=Path, default=Path("out/identify"))
+    ap.add_argument("--out", type=Path, default=Path("out/identify"), help="the results' folder")
     args = ap.parse_args(argv)
+    # start-up cost: --help imports no MuJoCo
+    from frictiongym.agents.lab.experiment_workflow import IdentifyOptions, recovery, run
+
     try:
         if args.kind == "recovery":
             table, _ = recovery(plant_names(), args.draws)
@@ -108,6 +112,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _lab(args: argparse.Namespace) -> int:
     """The drive-log sub-commands (frictiongym.agents.lab.drive_workflow)."""
+    from frictiongym.agents.lab import drive_workflow
 
     if args.kind == "idim":
         r = drive_workflow.identify(

@@ -1,9 +1,9 @@
 """Run every applicable controller on the identical episodes of a suite and rank them.
 
-    python scripts/leaderboard.py [--suite default | --scenarios A B --seeds 5000-5049 [--randomize]]
-                                  [--controllers PD PID ...] [--models DIR ...] [--workers N]
-                                  [--out out/leaderboard]
-    python scripts/leaderboard.py --report-from DIR --out OTHER    (a finished run's report, DIR only read)
+    frictiongym leaderboard [--suite default | --scenarios A B --seeds 5000-5049 [--randomize]]
+                            [--controllers PD PID ...] [--models DIR ...] [--workers N]
+                            [--out out/leaderboard]
+    frictiongym leaderboard --report-from DIR --out OTHER    (a finished run's report, DIR only read)
 
 Episodes run as jobs on N worker processes (default: every core) and land in OUT/episodes.csv as they
 finish; rerunning with the same options and --out resumes, and other options into the same --out are
@@ -17,40 +17,16 @@ question per plant) and PNG plots.
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
-from frictiongym.agents import leaderboard
-from frictiongym.agents.engine import add_backend_arguments, backend_of, one_line_errors, run_interruptibly
-from frictiongym.agents.registry import BASES, LEADERBOARD_GROUPS, committed_models
-from frictiongym.envs.scenario import scenario_names
-from frictiongym.envs.suites import Episode, suite_names
-
-
-def seed_range(text: str) -> list[int]:
-    """'5000-5049' (inclusive) or '7' -> the seeds."""
-    lo, _, hi = text.partition("-")
-    try:
-        seeds = list(range(int(lo), int(hi or lo) + 1))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected A-B or A (non-negative integers), got {text!r}") from None
-    if not seeds or seeds[0] < 0:
-        raise argparse.ArgumentTypeError(f"expected A <= B, both >= 0, got {text!r}")
-    return seeds
-
-
-def scenario_name(text: str) -> str:
-    """A scenario of configs/scenarios/ (argparse type): an unknown name is an error pointing to the list,
-    not a list of all 40 in every --help."""
-    if text not in scenario_names():
-        raise argparse.ArgumentTypeError(f"unknown scenario {text!r}: `frictiongym list` prints them")
-    return text
+from frictiongym.envs.suites import suite_names
+from frictiongym.scripts.options import add_backend_arguments, backend_of, parser, scenario_name, seed_range
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = parser(__doc__)
     src = ap.add_mutually_exclusive_group()
     src.add_argument(
         "--suite", choices=suite_names(), help="a suite of configs/suites.yaml (default: default)"
@@ -67,8 +43,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--controllers",
         nargs="+",
-        help="default: all (built-in, plug-ins and --models); a residual base that is no baseline "
-        f"({', '.join(BASES)}) runs only when named",
+        help="built-in names, your own as path.py:Class or module:Class (default: every built-in entry "
+        "and --models; a residual base that is no baseline, e.g. SpeedScheduled, runs only when named)",
     )
     ap.add_argument(
         "--models",
@@ -85,8 +61,14 @@ def main(argv: list[str] | None = None) -> int:
         help="write the report of the finished run in DIR to --out, reading DIR only (e.g. read-only media)",
     )
     add_backend_arguments(ap)
-    ap.add_argument("--out", type=Path, default=Path("out/leaderboard"))
+    ap.add_argument("--out", type=Path, default=Path("out/leaderboard"), help="the run's folder")
     args = ap.parse_args(argv)
+    # start-up cost: --help imports none of these (MuJoCo, the controllers, the engine)
+    from frictiongym.agents import leaderboard
+    from frictiongym.agents.engine import one_line_errors, run_interruptibly
+    from frictiongym.agents.registry import LEADERBOARD_GROUPS, committed_models
+    from frictiongym.envs.suites import Episode
+
     if args.report_from is not None:
 
         def report() -> int:

@@ -8,16 +8,16 @@ per scenario, with each scenario's plant, task, length and main metric.
 
 from __future__ import annotations
 
-import argparse
-
 from frictiongym.envs import ENV_IDS, SCENARIO_IDS, _env_class
-from frictiongym.envs.scenario import load_scenario
+from frictiongym.scripts.options import parser
 
 HEADER = ("id", "scenario", "plant", "task", "episode (s)", "steps", "main metric")
 
 
 def rows() -> list[tuple[str, ...]]:
     """One row per registered id: the plants' (their default scenario), then every scenario's."""
+    from frictiongym.envs.scenario import load_scenario  # start-up cost: --help imports no MuJoCo
+
     out = []
     for id_, (entry, _) in ENV_IDS.items():
         sc = load_scenario(_env_class(entry).default_scenario)
@@ -40,7 +40,7 @@ def markdown() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = parser(__doc__)
     ap.add_argument("--markdown", action="store_true", help="the table as Markdown (docs/envs.md)")
     args = ap.parse_args(argv)
     if args.markdown:

@@ -10,22 +10,24 @@ side (the README's picture).
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import gymnasium as gym
-import matplotlib.image
 import numpy as np
 
 import frictiongym.envs
-from frictiongym.agents.figures import save_figure
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.records import atomic_write, pyplot
+from frictiongym.scripts.options import parser
 
 
 def render_frames(out: Path, seed: int = 0, steps: int = 10, action: float = 0.3) -> list[Path]:
     """One PNG per plant into out/ (atomically); the paths written."""
+    import matplotlib.image  # start-up cost: --help imports no matplotlib
+
+    from frictiongym.agents.figures import save_figure
+
     out.mkdir(parents=True, exist_ok=True)
     written, frames = [], {}
     for env_id in frictiongym.envs.ENV_IDS:
@@ -52,7 +54,7 @@ def render_frames(out: Path, seed: int = 0, steps: int = 10, action: float = 0.3
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = parser(__doc__)
     ap.add_argument("--out", type=Path, default=Path("docs/_static/frames"), help="folder of the PNGs")
     ap.add_argument("--seed", type=int, default=0, help="the episode's seed")
     ap.add_argument("--steps", type=int, default=10, help="control periods before the frame")

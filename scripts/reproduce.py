@@ -1,6 +1,6 @@
 """Reproduce the documents' numbers on the simulator: writes DIR/report.json, DIR/report.md and figures.
 
-python scripts/reproduce.py [--out out/reproduce] [--sections m220 kang ...]
+    frictiongym reproduce [--out out/reproduce] [--sections m220 kang ...]
 
 Walks the sections of frictiongym.agents.reproduce (one module per document) in report order; exits 1 if
 any row fails.
@@ -8,22 +8,25 @@ any row fails.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 from pathlib import Path
 
 from tqdm import tqdm
 
-from frictiongym.agents import reproduce
 from frictiongym.envs.records import atomic_text
+from frictiongym.scripts.options import parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = parser(__doc__)
     ap.add_argument("--out", type=Path, default=Path("out/reproduce"), help="output folder")
-    ap.add_argument("--sections", nargs="*", choices=reproduce.section_names(), help="subset of sections")
+    ap.add_argument("--sections", nargs="*", metavar="SECTION", help="a subset of sections (default: all)")
     args = ap.parse_args(argv)
+    from frictiongym.agents import reproduce  # start-up cost: --help imports no MuJoCo
+
+    if unknown := sorted(set(args.sections or ()) - set(reproduce.section_names())):
+        ap.error(f"--sections: unknown {unknown}; choose from {reproduce.section_names()}")
     args.out.mkdir(parents=True, exist_ok=True)
     chosen = [s for s in reproduce.sections() if not args.sections or s.name in args.sections]
     results = [reproduce.run_section(s, args.out) for s in tqdm(chosen, desc="reproducing", unit="section")]

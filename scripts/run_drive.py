@@ -19,6 +19,8 @@ import json
 import sys
 from pathlib import Path
 
+from frictiongym.scripts.options import parser
+
 
 def address(text: str) -> tuple[str, int]:
     host, _, port = text.rpartition(":")
@@ -37,15 +39,22 @@ def limit(text: str) -> tuple[str, float]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = parser(__doc__)
     ap.add_argument("artefact", type=Path, help="a folder frictiongym export wrote")
     ap.add_argument("--drive", type=address, required=True, help="the drive's HOST:PORT")
-    ap.add_argument("--listen", type=address, default=("127.0.0.1", 47002), help="this side's HOST:PORT")
-    ap.add_argument("--duration-s", type=float, default=10.0)
-    ap.add_argument("--log", type=Path, default=Path("out/drive/log.csv"))
+    ap.add_argument(
+        "--listen",
+        type=address,
+        default=("127.0.0.1", 47002),
+        help="this side's HOST:PORT (default: 127.0.0.1:47002)",
+    )
+    ap.add_argument("--duration-s", type=float, default=10.0, help="how long the loop runs (s)")
+    ap.add_argument("--log", type=Path, default=Path("out/drive/log.csv"), help="the drive log (CSV)")
     ap.add_argument("--estop-file", type=Path, help="a file whose appearance stops the run at once")
     ap.add_argument("--limit", type=limit, nargs="*", default=[], help="supervisor limits, NAME=VALUE")
-    ap.add_argument("--backend", choices=("numpy", "onnxruntime"), default="numpy")
+    ap.add_argument(
+        "--backend", choices=("numpy", "onnxruntime"), default="numpy", help="how a network is evaluated"
+    )
     args = ap.parse_args(argv)
     from frictiongym.agents.drive_loop import Limits, run_drive  # the controllers: after --help
     from frictiongym.agents.runtime import Runtime  # the controllers: after --help

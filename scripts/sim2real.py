@@ -3,10 +3,10 @@ on plants shifted one axis at a time (friction level, asymmetry, Stribeck veloci
 inertia, delay up to one control period), on other friction structures (Dahl, Maxwell-slip, Kang's
 stick-slip model, Coulomb + viscous: the structural axis) and on joint shifts, in- and out-of-distribution.
 
-    python scripts/sim2real.py [--scenario m220_reversal_tracking] [--models DIR ...] [--controllers ...]
-                               [--seeds 10] [--points 5] [--joint 20] [--model-error 10] [--workers N]
-                               [--structures lugre dahl maxwell_slip kang coulomb]
-                               [--out out/sim2real]
+    frictiongym sim2real [--scenario m220_reversal_tracking] [--models DIR ...] [--controllers ...]
+                         [--seeds 10] [--points 5] [--joint 20] [--model-error 10] [--workers N]
+                         [--structures lugre dahl maxwell_slip kang coulomb]
+                         [--out out/sim2real]
 
 Writes OUT/episodes.csv (resumable), sim2real.csv (controller, axis, shift, metric mean and 95 % CI),
 sim2real.png (robustness curves), sim2real_structures.png (the main metric on each friction structure),
@@ -20,19 +20,22 @@ nominal ranges); those that apply to the scenario run.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
-from frictiongym.agents import sim2real
-from frictiongym.agents.engine import add_backend_arguments, backend_of, one_line_errors, run_interruptibly
-from frictiongym.agents.registry import LEADERBOARD_GROUPS, committed_models
-from frictiongym.scripts.leaderboard import scenario_name
+from frictiongym.envs.friction import STRUCTURES
+from frictiongym.scripts.options import add_backend_arguments, backend_of, parser, scenario_name
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scenario", default="m220_reversal_tracking", type=scenario_name, metavar="SCENARIO")
+    ap = parser(__doc__)
+    ap.add_argument(
+        "--scenario",
+        default="m220_reversal_tracking",
+        type=scenario_name,
+        metavar="SCENARIO",
+        help="the scenario",
+    )
     ap.add_argument(
         "--models", nargs="*", type=Path, help="saved-model folders (default: the committed ones)"
     )
@@ -50,13 +53,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--structures",
         nargs="*",
-        default=list(sim2real.STRUCTURES),
-        choices=sim2real.STRUCTURES,
+        default=list(STRUCTURES),
+        choices=STRUCTURES,
         help="friction structures of the structural axis (default: all; none: no structural axis)",
     )
     add_backend_arguments(ap)
-    ap.add_argument("--out", type=Path, default=Path("out/sim2real"))
+    ap.add_argument("--out", type=Path, default=Path("out/sim2real"), help="the study's folder")
     args = ap.parse_args(argv)
+    # start-up cost: --help imports none of these (MuJoCo, the controllers, the engine)
+    from frictiongym.agents import sim2real
+    from frictiongym.agents.engine import one_line_errors, run_interruptibly
+    from frictiongym.agents.registry import LEADERBOARD_GROUPS, committed_models
+
     ray = backend_of(args, ap)
     if min(args.seeds, args.points - 1, args.joint + 1, args.workers) < 1:
         ap.error("--seeds >= 1, --points >= 2, --joint >= 0, --workers >= 1")

@@ -1,15 +1,15 @@
 """Train learned friction compensators (stable-baselines3 / sb3-contrib) from a training config.
 
-    python scripts/train.py --config configs/agents/residual_sac.yaml [--scenario S] [--seed N ...]
-                            [--steps N] [--workers W] [--out DIR] [--resume]
-    python scripts/train.py --sweep configs/sweeps/residual_sac_alpha.yaml [--address ADDR] [--workers W]
-    python scripts/train.py --export RUN_DIR ... --out agents/models/specialist
+    frictiongym train --config configs/agents/residual_sac.yaml [--scenario S] [--seed N ...]
+                      [--steps N] [--workers W] [--out DIR] [--resume]
+    frictiongym train --sweep configs/sweeps/residual_sac_alpha.yaml [--address ADDR] [--workers W]
+    frictiongym train --export RUN_DIR ... --out agents/models/specialist
 
 Each (scenario, seed) run writes DIR/<name>/<scenario>/seed<N>/: the model selected on the validation
 suite with its frozen normalisation statistics, manifest.yaml (algorithm, scenario, base controller, α,
 hyper-parameters, seed, steps, wall time, this command, package version, validation score),
 validation.csv, training_curve.png, TensorBoard logs (tb/) and a checkpoint for --resume. The folder
-is a leaderboard entry: python scripts/leaderboard.py --models DIR/<name>/<scenario>/seed<N>
+is a leaderboard entry: frictiongym leaderboard --models DIR/<name>/<scenario>/seed<N>
 
 A sweep (seeds x a grid, or an Optuna search, over config values; configs/sweeps/) runs its trials on
 Ray Tune: a local Ray on --workers CPUs, or the cluster at --address. Every trial writes a model folder
@@ -24,13 +24,13 @@ import dataclasses
 import sys
 from pathlib import Path
 
-from frictiongym.agents.engine import disk_error, run_interruptibly
 from frictiongym.envs.config import ConfigError, preset_names
 from frictiongym.envs.records import atomic_text, csv_text, missing_extra
+from frictiongym.scripts.options import parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = parser(__doc__)
     what = ap.add_mutually_exclusive_group(required=True)
     what.add_argument("--config", help=f"a YAML path or a name of configs/agents/ {preset_names('agents')}")
     what.add_argument("--sweep", help="a YAML path or a name of configs/sweeps/ (runs on Ray Tune)")
@@ -42,11 +42,13 @@ def main(argv: list[str] | None = None) -> int:
         "--steps", type=int, help="environment steps per run, replacing the config's total_timesteps (a try)"
     )
     ap.add_argument("--workers", type=int, default=1, help="parallel runs or trials, one process each")
-    ap.add_argument("--out", type=Path, default=Path("out/models"))
+    ap.add_argument("--out", type=Path, default=Path("out/models"), help="the runs' folder")
     ap.add_argument("--resume", action="store_true", help="continue the runs' checkpoints")
     args = ap.parse_args(argv)
     if args.workers < 1 or any(s < 0 for s in args.seed) or (args.steps is not None and args.steps < 1):
         ap.error("--workers and --steps must be >= 1 and seeds >= 0")
+    from frictiongym.agents.engine import disk_error, run_interruptibly  # start-up cost: after --help
+
     try:
         from frictiongym.agents.training import (  # the rl extra: a missing one is named, after --help
             NothingSelected,

@@ -16,13 +16,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from frictiongym.agents.engine import one_line_errors
-from frictiongym.agents.tuned import tuned_path
-from frictiongym.agents.tuning import tune, write_tuned
+from frictiongym.scripts.options import parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = parser(__doc__)
     ap.add_argument("family", help="a tunable built-in family, e.g. PID+MFF, Cascade+MFF, DOB")
     ap.add_argument("--plant", required=True, help="plant preset: kang_robot, m220, emps, flexible_servo")
     ap.add_argument("--budget-min", type=float, default=20.0, help="wall-time budget (min; default 20)")
@@ -35,12 +33,17 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("budget_min", "trials", "episodes", "workers"):
         if not getattr(args, name) > 0:
             ap.error(f"--{name.replace('_', '-')} must be positive, got {getattr(args, name)}")
+    from frictiongym.agents.engine import one_line_errors  # start-up cost: after --help
+    from frictiongym.agents.tuned import tuned_path
+
     out = args.out or tuned_path()
     return one_line_errors(lambda: run(args, out), out)
 
 
 def run(args: argparse.Namespace, out: Path) -> int:
     """Tune and write (main's checked options)."""
+    from frictiongym.agents.tuning import tune, write_tuned
+
     entry = tune(
         args.family, args.plant, args.budget_min * 60, args.trials, args.seed, args.episodes, args.workers
     )

@@ -10,27 +10,36 @@ Prints its figures as JSON (periods, commands missing and late, the ticks' laten
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 
-from frictiongym.envs.virtual_drive import Faults, serve
-from frictiongym.scripts.leaderboard import scenario_name
+from frictiongym.scripts.options import parser, scenario_name
 from frictiongym.scripts.run_drive import address
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scenario", required=True, type=scenario_name, metavar="SCENARIO")
-    ap.add_argument("--listen", type=address, default=("127.0.0.1", 47001))
-    ap.add_argument("--controller", type=address, default=("127.0.0.1", 47002))
-    ap.add_argument("--duration-s", type=float, default=10.0)
+    ap = parser(__doc__)
+    ap.add_argument(
+        "--scenario", required=True, type=scenario_name, metavar="SCENARIO", help="the plant's scenario"
+    )
+    ap.add_argument(
+        "--listen", type=address, default=("127.0.0.1", 47001), help="HOST:PORT (default: 127.0.0.1:47001)"
+    )
+    ap.add_argument(
+        "--controller",
+        type=address,
+        default=("127.0.0.1", 47002),
+        help="run-drive's HOST:PORT (default: 127.0.0.1:47002)",
+    )
+    ap.add_argument("--duration-s", type=float, default=10.0, help="how long it serves (s)")
     ap.add_argument("--loss", type=float, default=0.0, help="probability a readings datagram is lost")
     ap.add_argument("--late-s", type=float, default=0.0, help="readings sent this late in their period (s)")
     ap.add_argument("--freeze-at-s", type=float, help="the drive stops sending from this time (s)")
     ap.add_argument("--runaway-at-s", type=float, help="full positive command from this time (s)")
-    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=0, help="the episode's seed (its plant and noise)")
     args = ap.parse_args(argv)
+    from frictiongym.envs.virtual_drive import Faults, serve  # start-up cost: --help imports no MuJoCo
+
     faults = Faults(args.loss, args.late_s, args.freeze_at_s, args.runaway_at_s)
     out = serve(args.scenario, args.listen, args.controller, args.duration_s, faults, args.seed)
     out = {k: v for k, v in out.items() if k not in ("output", "command")}

@@ -1,9 +1,9 @@
 """Where along an episode a controller breaks: the command's rms and the mean absolute tracking error per
 time window, averaged over a scenario's episodes (on a chirp, a window is a frequency band).
 
-    python scripts/windows.py --scenario flexible_chirp --seeds 800000-800004 [--window-s 2.5]
-                              [--controllers PID LuGreObserver ...] [--models DIR ...] [--no-randomize]
-                              [--out out/windows]
+    frictiongym windows --scenario flexible_chirp --seeds 800000-800004 [--window-s 2.5]
+                        [--controllers PID LuGreObserver ...] [--models DIR ...] [--no-randomize]
+                        [--out out/windows]
 
 Writes OUT/windows.csv (one row per controller and window; rewritten atomically after each controller, so
 an interrupted run keeps the controllers it finished) and OUT/windows.png, and prints the table.
@@ -16,29 +16,27 @@ from __future__ import annotations
 import argparse
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from tqdm import tqdm
+from frictiongym.scripts.options import parser, scenario_name, seed_range
 
-from frictiongym.agents import registry
-from frictiongym.agents.engine import one_line_errors
-from frictiongym.agents.evaluate import EnvCache
-from frictiongym.agents.windows import FIELDS, controller_windows, plot_windows
-from frictiongym.envs.records import atomic_text, csv_text
-from frictiongym.envs.scenario import Scenario, load_scenario
-from frictiongym.envs.suites import Episode
-from frictiongym.scripts.leaderboard import scenario_name, seed_range
+if TYPE_CHECKING:
+    from frictiongym.envs.scenario import Scenario
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--scenario", required=True, type=scenario_name, metavar="SCENARIO")
+    ap = parser(__doc__)
+    ap.add_argument("--scenario", required=True, type=scenario_name, metavar="SCENARIO", help="the scenario")
     ap.add_argument("--seeds", type=seed_range, required=True, help="episode seeds, e.g. 800000-800004")
     ap.add_argument("--window-s", type=float, default=2.5, help="window length (s; default 2.5)")
     ap.add_argument("--controllers", nargs="+", help="default: every built-in controller defined here")
     ap.add_argument("--models", nargs="*", type=Path, default=[], help="saved-model folders")
     ap.add_argument("--no-randomize", action="store_true", help="the nominal plant in every episode")
-    ap.add_argument("--out", type=Path, default=Path("out/windows"))
+    ap.add_argument("--out", type=Path, default=Path("out/windows"), help="the run's folder")
     args = ap.parse_args(argv)
+    from frictiongym.agents.engine import one_line_errors  # start-up cost: --help imports no engine
+    from frictiongym.envs.scenario import load_scenario
+
     scenario = load_scenario(args.scenario)
     if not args.window_s >= scenario.control_period:  # a window could hold no sample
         period = scenario.control_period
@@ -48,6 +46,14 @@ def main(argv: list[str] | None = None) -> int:
 
 def run(args: argparse.Namespace, scenario: Scenario) -> int:
     """The windows of every controller asked for (main's checked options)."""
+    from tqdm import tqdm
+
+    from frictiongym.agents import registry
+    from frictiongym.agents.evaluate import EnvCache
+    from frictiongym.agents.windows import FIELDS, controller_windows, plot_windows
+    from frictiongym.envs.records import atomic_text, csv_text
+    from frictiongym.envs.suites import Episode
+
     controllers, models = registry.entries(args.controllers, args.models)
     if controllers:
         for name in controllers:

@@ -1,9 +1,9 @@
 """rl-baselines3-zoo with the frictiongym envs registered, and zoo agents judged on the validation suite.
 
-    python scripts/zoo.py train --algo sac --env frictiongym/KangRobot-Regulation-v0 \
+    frictiongym zoo train --algo sac --env frictiongym/KangRobot-Regulation-v0 \
         --conf-file configs/zoo/sac.yml
-    python scripts/zoo.py record_video --algo sac --env frictiongym/KangRobot-Regulation-v0 -f logs -n 500
-    python scripts/zoo.py validate --algo sac --env frictiongym/KangRobot-Regulation-v0 -f logs --trust-pickle
+    frictiongym zoo record_video --algo sac --env frictiongym/KangRobot-Regulation-v0 -f logs -n 500
+    frictiongym zoo validate --algo sac --env frictiongym/KangRobot-Regulation-v0 -f logs --trust-pickle
 
 train, enjoy and record_video are the zoo's own commands and take its options (record_video has no
 --gym-packages, hence this front end; videos need the video extra and MUJOCO_GL=egl). validate runs
@@ -14,12 +14,11 @@ SB3 zip, a VecNormalize), which run code when loaded: validate reads them only w
 
 from __future__ import annotations
 
-import argparse
 import sys
 from types import ModuleType
 
 from frictiongym.envs.records import missing_extra
-from frictiongym.envs.scenario import load_scenario
+from frictiongym.scripts.options import Formatter, parser
 
 ZOO_COMMANDS = ("train", "enjoy", "record_video")  # rl_zoo3's own commands, run with the ids registered
 
@@ -43,12 +42,13 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         zoo.run_zoo_command(argv[0], argv[1:])
         return 0
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = parser(__doc__)
     sub = p.add_subparsers(dest="command", required=True)
     for name in ZOO_COMMANDS:
         sub.add_parser(name, help=f"rl_zoo3.{name} with the frictiongym ids registered (zoo options)")
-    v = sub.add_parser("validate", help="a zoo run against the best classical baseline (validation suite)")
-    v.add_argument("--algo", required=True)
+    what = "a zoo run against the best classical baseline (validation suite)"
+    v = sub.add_parser("validate", help=what, description=what, formatter_class=Formatter)
+    v.add_argument("--algo", required=True, help="the zoo's algorithm, e.g. sac")
     v.add_argument("--env", required=True, help="a frictiongym id, e.g. frictiongym/KangRobot-Regulation-v0")
     v.add_argument("-f", "--folder", default="logs", help="the zoo's log folder")
     v.add_argument("--exp-id", type=int, default=0, help="0: the latest run")
@@ -67,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {e}", file=sys.stderr)
         return 2
     b, a = out["baseline"], out["agent"]
+    from frictiongym.envs.scenario import load_scenario
+
     main = load_scenario(out["scenario"]).main_metric
     print(f"{run}: {out['scenario']}, first {args.episodes} validation episodes, {main} (lower is better)")
     print(f"  best classical {b.name}: {main} {b.main:.4g}, effort_rms {b.effort_rms:.4g}")

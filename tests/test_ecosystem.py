@@ -7,6 +7,7 @@ from __future__ import annotations
 import copy
 import json
 import pickle
+import re
 import warnings
 from pathlib import Path
 
@@ -17,8 +18,8 @@ from gymnasium.utils.env_checker import data_equivalence
 
 import frictiongym.envs  # registers the ids
 from frictiongym.envs import ENV_IDS, scenario_env_id
-from frictiongym.envs.config import ConfigError, configs_dir
-from frictiongym.envs.scenario import load_scenario, scenario_names
+from frictiongym.envs.config import ConfigError, configs_dir, scenario_names
+from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.vector import ServoVectorEnv, make_sb3_vec_env
 
 KANG = "frictiongym/KangRobot-v0"
@@ -46,6 +47,8 @@ def _rollout(venv, steps: int, seed: int = 7) -> list:
 def test_vector_entry_point_equals_sync_vector_env_bit_for_bit(kwargs):
     plant = load_scenario(kwargs["scenario"]).spec.name
     env_id = frictiongym.envs.env_id(plant)
+    if load_scenario(kwargs["scenario"]).episode_steps > gym.spec(env_id).max_episode_steps:
+        env_id = frictiongym.envs.scenario_env_id(kwargs["scenario"])  # longer than the plant id's limit
     batched = gym.make_vec(env_id, num_envs=3, **kwargs)
     sync = gym.make_vec(env_id, num_envs=3, vectorization_mode="sync", **kwargs)
     assert isinstance(batched, ServoVectorEnv)
@@ -74,26 +77,63 @@ def test_vector_entry_point_takes_make_vec_arguments_and_refuses_another_plant()
 
 @pytest.mark.parametrize("env_id", IDS)
 def test_a_plant_id_ends_its_episode_where_its_chosen_scenario_does(env_id):
-    """A per-plant id has no max_episode_steps (its registered spec cannot know the call's scenario=):
-    no TimeLimit is added, and the env itself truncates at the chosen scenario's last period, single and
-    vector, with the episode's metrics; the registry is unchanged by the calls."""
+    """A per-plant id's max_episode_steps is its default scenario's length; a scenario= whose episode is
+    shorter ends where that scenario does, single and vector, with the episode's metrics; a longer one is
+    refused in one line naming its own id (the TimeLimit would cut it short)."""
     entry = frictiongym.envs._env_class(ENV_IDS[env_id][0])
     default = load_scenario(entry.default_scenario).episode_steps
-    other = next(n for n in _plant_scenarios(entry.plant) if load_scenario(n).episode_steps != default)
-    steps = load_scenario(other).episode_steps
-    assert gym.spec(env_id).max_episode_steps is None
-    env = gym.make(env_id, scenario=other)
+    assert gym.spec(env_id).max_episode_steps == default
+    lengths = {n: load_scenario(n).episode_steps for n in _plant_scenarios(entry.plant)}
+    shorter = [n for n, k in lengths.items() if k < default]
+    other, episode_s = (shorter[0], None) if shorter else (entry.default_scenario, 0.5 * default * 0.001)
+    if episode_s is not None:  # no shorter scenario: the default one, shortened
+        episode_s = 0.5 * default * load_scenario(other).control_period
+    env = gym.make(env_id, scenario=other, episode_s=episode_s)
+    steps = env.unwrapped.scenario.episode_steps
+    assert steps < default
     env.reset(seed=0)
     for k in range(1, steps + 1):
         *_, term, trunc, info = env.step(np.zeros(1, np.float32))
         assert trunc == (k == steps) and not term
     assert "episode_metrics" in info
-    v = gym.make_vec(env_id, num_envs=2, scenario=other)
+    v = gym.make_vec(env_id, num_envs=2, scenario=other, episode_s=episode_s)
     v.reset(seed=0)
     for k in range(1, steps + 1):
         *_, term, trunc, _ = v.step(np.zeros((2, 1), np.float32))
         assert (trunc == (k == steps)).all() and not term.any()
-    assert gym.spec(env_id).max_episode_steps is None
+    longer = next((n for n, k in lengths.items() if k > default), None)
+    if longer is not None:
+        with pytest.raises(ValueError, match=re.escape(f"use gym.make({scenario_env_id(longer)!r}")):
+            gym.make(env_id, scenario=longer)
+    assert gym.spec(env_id).max_episode_steps == default  # the registry is unchanged by the calls
+
+
+class _Zero:
+    """A policy for SB3's evaluate_policy: the zero action."""
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        return np.zeros((len(obs), 1), np.float32), state
+
+
+@pytest.mark.parametrize("env_id", sorted(i for i in gym.registry if i.startswith("frictiongym/")))
+def test_every_id_works_with_time_wrappers_and_the_zoos_evaluation(env_id):
+    """TimeLimit, TimeAwareObservation and rl-zoo's evaluation (its create_test_env, then SB3's
+    evaluate_policy) on every registered id: each carries max_episode_steps, its scenario's length."""
+    env = gym.make(env_id)
+    steps = env.unwrapped.scenario.episode_steps
+    assert env.spec.max_episode_steps == gym.spec(env_id).max_episode_steps == steps
+    timed = gym.wrappers.TimeAwareObservation(gym.make(env_id, max_episode_steps=3))
+    obs, _ = timed.reset(seed=0)
+    assert obs[-1] == 0.0  # the elapsed steps
+    flags = [timed.step(np.zeros(1, np.float32))[3] for _ in range(3)]
+    assert flags == [False, False, True]
+    rl_zoo3 = pytest.importorskip("rl_zoo3.utils")
+    from stable_baselines3.common.evaluation import evaluate_policy
+
+    short = {"episode_s": 3 * env.unwrapped.scenario.control_period}  # 3 periods
+    venv = rl_zoo3.create_test_env(env_id, n_envs=1, should_render=False, hyperparams={}, env_kwargs=short)
+    rewards, lengths = evaluate_policy(_Zero(), venv, n_eval_episodes=2, return_episode_rewards=True)
+    assert lengths == [3, 3] and all(np.isfinite(rewards))
 
 
 @pytest.mark.parametrize("scenario", scenario_names())
@@ -157,7 +197,7 @@ def test_undefined_metrics_stay_nan_in_results():
 
 @pytest.mark.parametrize("how", ["deepcopy", "pickle"])
 def test_a_copy_after_reset_steps_on_from_the_same_state(how):
-    env = gym.make("frictiongym/M220-v0", scenario="m220_reversal_tracking_hard", randomize=True)
+    env = gym.make("frictiongym/M220-ReversalTrackingHard-v0", randomize=True)
     env.reset(seed=4)
     rng = np.random.default_rng(1)
     for _ in range(50):
@@ -210,11 +250,12 @@ def test_passive_env_checker_is_on_and_silent(env_id):
 
 
 def test_path_scenario_serialises_in_the_spec():
-    path = configs_dir() / "scenarios" / "kang_ramp.yaml"
+    path = configs_dir() / "scenarios" / "kang_regulation_hard.yaml"
     env = gym.make(KANG, scenario=path)
     spec = json.loads(env.spec.to_json())
-    assert spec["kwargs"]["scenario"] == str(path) and spec["max_episode_steps"] is None
-    assert gym.make(KANG, scenario=env.spec.kwargs["scenario"]).unwrapped.scenario.episode_steps == 2500
+    assert spec["kwargs"]["scenario"] == str(path) and spec["max_episode_steps"] == 500
+    again = gym.make(KANG, scenario=env.spec.kwargs["scenario"]).unwrapped.scenario
+    assert again.name == "kang_regulation_hard" and again.episode_steps == 500
     assert gym.make_vec(KANG, num_envs=2, scenario=path).spec.to_json()
 
 

@@ -198,8 +198,9 @@ def _override(data: dict, path: tuple, value: float) -> dict:
 
 
 def _cases():
+    from frictiongym.envs.config import scenario_names
     from frictiongym.envs.plants import plant_names
-    from frictiongym.envs.scenario import scenario_config, scenario_names
+    from frictiongym.envs.scenario import scenario_config
 
     for plant in plant_names():
         data = load_yaml(plant)

@@ -13,8 +13,8 @@ from gymnasium.utils.env_checker import check_env
 
 import frictiongym.envs  # noqa: F401  (registers the ids)
 from frictiongym.envs import env_id
-from frictiongym.envs.config import ConfigError
-from frictiongym.envs.scenario import load_scenario, scenario_names
+from frictiongym.envs.config import ConfigError, scenario_names
+from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.step import REWARD_TERMS
 
@@ -121,7 +121,7 @@ def test_episode_structure_ground_truth_and_metrics():
 
 
 def test_observation_layout_and_scaling_helpers():
-    env = gym.make("frictiongym/M220-v0", scenario="m220_reversal_tracking")
+    env = gym.make("frictiongym/M220-ReversalTracking-v0")
     obs, _ = env.reset(seed=0)
     u = env.unwrapped
     assert obs.shape == (2 + 1 + 5 + 1,)

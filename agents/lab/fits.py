@@ -397,7 +397,9 @@ def presliding_stiffness(log: Log, amplitude: float, frequency_hz: float) -> tup
     x = x - np.polyval(np.polyfit(t, x, 1), t)
     amp = 0.5 * float(x.max() - x.min())
     res = resolution(log)
-    if amp == 0 or amp < 5 * res:
+    if amp == 0:
+        return None, "the position did not move over the last period: σ0 not identifiable"
+    if amp < 5 * res:
         return None, f"displacement {amp:.3g} rad < 5 resolutions ({res:.3g} rad): σ0 not identifiable"
     return amplitude / amp, f"displacement amplitude {amp:.3g} rad = {amp / res:.0f} resolutions"
 

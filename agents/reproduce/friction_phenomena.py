@@ -22,7 +22,7 @@ import mujoco
 import numpy as np
 
 from frictiongym.agents.lab import radau
-from frictiongym.envs.friction import joint_levels
+from frictiongym.envs.friction import STRUCTURES, joint_levels
 from frictiongym.envs.plants import PlantSpec, plant_spec
 from frictiongym.envs.records import pyplot
 from frictiongym.envs.units import deg_to_rad
@@ -30,7 +30,7 @@ from frictiongym.envs.units import deg_to_rad
 from ..figures import save_figure
 from .report import Section, row
 
-STRUCTURES = ("lugre", "dahl", "maxwell_slip", "kang", "coulomb")  # native: the simulator's plants
+# native (envs.friction.STRUCTURES): the simulator's plants
 REFERENCE = tuple(radau.REFERENCE_STRUCTURES)  # reference implementations only (never a plant)
 ALL = STRUCTURES + REFERENCE
 LAG_FREQUENCIES_HZ = (1.0, 10.0)

@@ -28,6 +28,7 @@ from tqdm import tqdm
 from frictiongym.agents.lab import experiments as ex
 from frictiongym.agents.lab.fits import identify_simulated
 from frictiongym.envs.config import ConfigError
+from frictiongym.envs.friction import STRUCTURES
 from frictiongym.envs.plants.identified import IdentifiedFriction, apply_identified
 from frictiongym.envs.plants.params import EpisodeParams, spec_with
 from frictiongym.envs.sampler import stream
@@ -87,7 +88,7 @@ def _admissible(scenario: str, values: dict[str, float]) -> bool:
     return True
 
 
-STRUCTURES = ("lugre", "dahl", "maxwell_slip", "kang", "coulomb")  # the structural axis (friction_model)
+# the structural axis (friction_model): envs.friction.STRUCTURES
 
 
 def runnable_structures(scenario: str, structures: tuple[str, ...]) -> tuple[tuple[str, ...], dict[str, str]]:

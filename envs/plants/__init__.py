@@ -9,16 +9,24 @@ Adding a plant means configs/plants/<name>.yaml with `plant: <name>`, a module <
 from __future__ import annotations
 
 import importlib
+import logging
 from dataclasses import replace
 from pathlib import Path
 from types import ModuleType
 from typing import Any
+
+import mujoco
 
 from ..config import ConfigError, Node, load_yaml, merge, plant_names, preset_path
 from ..friction import BRISTLE_MODELS, FRICTION_MODELS, check_numerics
 from .identified import IdentifiedFriction, apply_identified
 from .params import check_randomization
 from .spec import JointSpec, PlantSpec
+
+# MuJoCo writes its warnings to MUJOCO_LOG.TXT in the working directory; route them to Python logging
+# instead (a divergence is reported per episode through info["diverged"]). Set where every simulation's
+# plant is built, so importing frictiongym.envs (a command's --help) does not import MuJoCo.
+mujoco.set_mju_user_warning(lambda msg: logging.getLogger("frictiongym.mujoco").warning(msg))
 
 __all__ = ["PlantSpec", "plant_config", "plant_module", "plant_names", "plant_spec"]
 
