@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from frictiongym.envs.metrics import METRIC_NAMES
-from frictiongym.envs.records import atomic_text, command_line, git_commit, package_version
+from frictiongym.envs.records import atomic_text, command_line, csv_text, git_commit, package_version
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.suites import Episode, load_suite, suite_names
 
@@ -327,9 +327,12 @@ def run(
     else:
         options = {"episodes": [asdict(e) for e in episodes], "controllers": names, "models": list(models)}
         results, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models, ray)
-    for name, scenario, reason in skipped:
-        if progress:
-            print(f"skipped {name} on {scenario}: {reason}")
+    if out is not None and skipped:
+        rows = [{"controller": n, "scenario": sc, "reason": why} for n, sc, why in skipped]
+        atomic_text(out / "skipped.csv", csv_text(rows))
+    if progress and skipped:
+        where = f": {out / 'skipped.csv'} gives each with its reason" if out is not None else ""
+        print(f"skipped {len(skipped)} (controller, scenario) pairs that do not apply{where}")
     return results, summarize_and_write(suite, episodes, results, models, out)
 
 

@@ -12,7 +12,7 @@ import io
 import math
 from typing import TYPE_CHECKING
 
-from .leaderboard_report import ANSWER_HEAD, G_MEANING, MAX_EFFORT_RATIO, answer_rows
+from .leaderboard_report import ANSWER_HEAD, G_MEANING, MAX_EFFORT_RATIO, answer_rows, headline
 
 if TYPE_CHECKING:
     from .leaderboard import Board
@@ -33,6 +33,9 @@ tr.chatters td:first-child { text-decoration: line-through; }
 .provenance, .note { color: #555; font-size: 12.5px; }
 img { max-width: 100%; border: 1px solid #eee; margin: 0.5em 0; }
 nav a { margin-right: 0.8em; }
+#answer li { margin: 0.3em 0; }
+.win { color: #137333; } .none { color: #5f6368; }
+td.yes { background: #e6f4ea; color: #137333; font-weight: bold; } td.no { color: #a50e0e; }
 """
 
 # Sort a table by the clicked column: numbers by the cell's data-v (NaN last), text otherwise.
@@ -104,13 +107,19 @@ def _verdicts(board: Board) -> list[str]:
         return []
     rows = []
     for j in board.verdicts:
-        v, verdict = j["vs_baseline"], "yes" if j["beats_baseline"] else f"no: {_e(j['why_not'])}"
-        rows.append(
-            f"<tr><td>{_e(j['scenario'])}</td><td>{_e(j['controller'])}</td><td>{_e(j['baseline'])}</td>"
-            f"{_ci((v['diff'], v['diff_lo'], v['diff_hi']))}<td data-v='{_num(j['effort_ratio'])}'>"
-            f"{j['effort_ratio']:.2f}</td><td>{verdict}</td></tr>"
+        v = j["vs_baseline"]
+        verdict = (
+            "<td class='yes'>yes</td>"
+            if j["beats_baseline"]
+            else f"<td class='no'>no: {_e(j['why_not'])}</td>"
         )
-    head = ["scenario", "entry", "baseline", "difference of the main metric", "effort ratio", "beats it"]
+        rows.append(
+            f"<tr><td>{_e(_with_unit(board, j['scenario']))}</td><td>{_e(j['controller'])}</td>"
+            f"<td>{_e(j['baseline'])}</td>{_ci((v['diff'], v['diff_lo'], v['diff_hi']))}"
+            f"<td data-v='{_num(j['effort_ratio'])}'>{j['effort_ratio']:.2f}</td>{verdict}</tr>"
+        )
+    head = ["scenario (main metric, unit)", "entry", "baseline", "difference of the main metric (its unit)",
+            "effort ratio (x the baseline's)", "beats it"]  # fmt: skip
     return [
         "<h2 id='verdicts'>Learned and plug-in entries against the best classical baseline</h2>",
         f"<p>Beats it: the paired 95 % interval of the per-episode difference below 0, at most "
@@ -132,7 +141,13 @@ def _scenarios(board: Board) -> list[str]:
             name += f" <small>(not a result: {_e(r['chatters'])})</small>" if r.get("chatters") else ""
             cells = [_ci(r["main"]), _ci(r["g"]), _ci(r["g_tracking"]), *(_ci(r["metrics"][m]) for m in sec)]
             body.append(f"<tr class='{cls}'><td>{name}</td>{''.join(cells)}</tr>")
-        head = ["controller", f"{s.main_metric} (main)", "g", "g (tracking limit)", *sec]
+        head = [
+            "controller",
+            f"{s.main_metric} [{s.metric_unit(s.main_metric)}] (main)",
+            "g [1: friction removed]",
+            "g against the tracking limit [1]",
+            *(f"{m} [{s.metric_unit(m)}]" for m in sec),
+        ]
         out += [f"<h3 id='{_e(sc)}'>{_e(sc)}</h3>", f"<p class='note'>{_e(s.why)}</p>", _table(head, body)]
     return out
 
@@ -146,8 +161,10 @@ def page(board: Board, figures: dict[str, bytes], provenance: dict[str, str]) ->
         f"<title>frictiongym leaderboard: {_e(board.suite)}</title><style>{STYLE}</style></head><body>",
         f"<h1>frictiongym leaderboard, suite <code>{_e(board.suite)}</code></h1>",
         f"<p class='provenance'>{prov}</p>",
-        "<nav><a href='#question'>the question</a><a href='#plants'>per plant</a><a href='#verdicts'>"
-        "verdicts</a><a href='#scenarios'>scenarios</a><a href='#figures'>figures</a></nav>",
+        "<nav><a href='#answer'>the answer</a><a href='#question'>per scenario</a><a href='#plants'>per "
+        "plant</a><a href='#verdicts'>verdicts</a><a href='#scenarios'>scenarios</a><a href='#figures'>"
+        "figures</a></nav>",
+        *_headline(board),
         f"<p class='note'>{_e(G_MEANING)} Reference rows (grey, never ranked): Zero, Ideal, TrackingLimit, "
         "Oracle. Click a column's header to sort by it.</p>",
         "<h2 id='question'>The question per plant</h2>",
@@ -155,7 +172,10 @@ def page(board: Board, figures: dict[str, bytes], provenance: dict[str, str]) ->
     for plant, rows in answer_rows(board).items():
         body = []
         for row in rows:
-            cells = [f"<td>{_e(row['scenario'])}</td>", *(_answer_cell(c) for c in row["cells"])]
+            cells = [
+                f"<td>{_e(_with_unit(board, row['name']))}</td>",
+                *(_answer_cell(c) for c in row["cells"]),
+            ]
             body.append(f"<tr>{''.join(cells)}</tr>")
         parts += [f"<h3>{_e(plant)}</h3>", _table(ANSWER_HEAD, body)]
     parts += _aggregates(board) + _verdicts(board) + _scenarios(board)
@@ -165,6 +185,27 @@ def page(board: Board, figures: dict[str, bytes], provenance: dict[str, str]) ->
         parts.append(f"<h3>{_e(name)}</h3><img alt='{_e(name)}' src='data:image/png;base64,{data}'>")
     parts.append(f"<script>{SCRIPT}</script></body></html>")
     return "\n".join(parts) + "\n"
+
+
+def _with_unit(board: Board, scenario: str) -> str:
+    """'kang_ramp (iae, rad·s)': a scenario with its main metric and that metric's unit."""
+    s = board.scenarios[scenario]
+    return f"{scenario} ({s.main_metric}, {s.metric_unit(s.main_metric)})"
+
+
+def _headline(board: Board) -> list[str]:
+    """The answer first: per plant, whether a learned or plug-in entry beats the best classical row, and
+    where (green where one does)."""
+    items = []
+    for plant, verdict, wins in headline(board):
+        cls = "win" if wins else "none"
+        sub = "".join(f"<li>{_e(w)}</li>" for w in wins)
+        items.append(
+            f"<li class='{cls}'><b>{_e(plant)}</b>: {_e(verdict)}"
+            + (f"<ul>{sub}</ul>" if sub else "")
+            + "</li>"
+        )
+    return ["<h2 id='answer'>The answer</h2>", f"<ul>{''.join(items)}</ul>"]
 
 
 def compact_png(png: bytes) -> bytes:

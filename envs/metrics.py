@@ -26,6 +26,25 @@ METRIC_NAMES = (
 )
 
 
+def metric_unit(name: str, output_unit: str, command_unit: str) -> str:
+    """A metric's unit for a plant whose tracked output is in `output_unit` (rad, m or V) and whose command
+    is in `command_unit` (V or N·m): what a table's header shows beside the metric's name."""
+    return {
+        "iae": f"{output_unit}·s",
+        "ise": f"{output_unit}²·s",
+        "rms_error": output_unit,
+        "final_error": output_unit,
+        "settling_time": "s",
+        "overshoot_pct": "%",
+        "limit_cycle_amp": output_unit,
+        "limit_cycle_freq_hz": "Hz",
+        "stick_slip_events": "count",
+        "reversal_peak_error": output_unit,
+        "effort_rms": f"{command_unit} rms",
+        "effort_total_variation": command_unit,
+    }[name]
+
+
 def integral_errors(t: np.ndarray, e: np.ndarray) -> dict[str, float]:
     """IAE = Σ|e|·dt, ISE = Σe²·dt (rectangle rule on the sampling grid), RMS error."""
     dt = float(np.mean(np.diff(t))) if len(t) > 1 else 0.0

@@ -31,7 +31,7 @@ from .config import (
     preset_path,
 )
 from .friction import BRISTLE_MODELS, FRICTION_MODELS, FrictionDrift
-from .metrics import METRIC_NAMES
+from .metrics import METRIC_NAMES, metric_unit
 from .plants import PlantSpec, plant_names, plant_spec
 from .plants.mjcf import friction_joints
 from .references import SEGMENT_KINDS, RandomReference, move_duration, trapezoid_distance
@@ -253,6 +253,10 @@ class Scenario:
     def output_unit(self) -> str:
         """The tracked sensor's unit (rad, m or V): the unit of the reference, the output and the error."""
         return self.spec.sensor_unit(self.spec.sensor_names[self.tracked_sensor])
+
+    def metric_unit(self, metric: str) -> str:
+        """The unit of one of METRIC_NAMES on this scenario (e.g. iae in rad·s, effort_rms in V rms)."""
+        return metric_unit(metric, self.output_unit, self.spec.command_unit)
 
 
 @dataclass(frozen=True)

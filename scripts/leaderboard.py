@@ -101,12 +101,18 @@ def main(argv: list[str] | None = None) -> int:
     code = one_line_errors(lambda: run_interruptibly(run, resume), args.out)
     if code:
         return code
-    print((args.out / "leaderboard.md").read_text().split("\n![")[0])
-    print(
-        f"wrote {args.out / 'leaderboard.md'}, leaderboard.csv, episodes.csv and plots "
-        f"in {time.perf_counter() - t0:.0f} s ({args.workers} workers)"
-    )
+    print(f"\n{the_answer(args.out / 'answer.md')}\n")
+    print(f"done in {time.perf_counter() - t0:.0f} s on {args.workers} workers")
+    print(f"the page (open it in a browser): {args.out / 'index.html'}")
+    print(f"the answer per scenario: {args.out / 'answer.md'}; every table: {args.out / 'leaderboard.md'}")
     return 0
+
+
+def the_answer(answer_md: Path) -> str:
+    """answer.md's headline (its "The answer" section: per plant, the verdict and the rows that win)."""
+    text = answer_md.read_text()
+    section = text.partition("## The answer\n")[2].split("\n## ")[0].strip()
+    return "The answer (best learned or plug-in entry against the best classical, per plant):\n" + section
 
 
 if __name__ == "__main__":

@@ -62,7 +62,12 @@ def test_script_writes_markdown_csv_and_plots(tmp_path):
         timeout=600,
     )
     assert proc.returncode == 0, proc.stderr
-    assert "## kang_regulation_20deg" in proc.stdout
+    # the console: one summary of the pairs skipped, not a line each; it ends with the answer and the page
+    assert " on kang_" not in proc.stdout and "pairs that do not apply" in proc.stdout
+    assert (tmp_path / "skipped.csv").read_text().startswith("controller,scenario,reason")
+    assert "The answer (best learned or plug-in entry against the best classical, per plant):" in proc.stdout
+    assert "- **m220**: no learned or plug-in entry ran" in proc.stdout
+    assert proc.stdout.rstrip().splitlines()[-2].endswith(str(tmp_path / "index.html"))
     rows = list(csv.DictReader((tmp_path / "leaderboard.csv").read_text().splitlines()))
     # the two limits come with every run: Ideal/Oracle, and TrackingLimit where a reference is tracked
     assert {r["controller"] for r in rows} == {"Zero", "Ideal", "Oracle", "TrackingLimit", "PD", "PID"}

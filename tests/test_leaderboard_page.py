@@ -69,6 +69,10 @@ def test_the_page_is_self_contained_with_sortable_tables_and_marked_references(b
     scenario_rows = [r for t in page.tables[-2:] for r in t["rows"]]
     assert scenario_rows.count("ref") == 7
     assert "<p class='provenance'>frictiongym: " in text and "; commit: " in text
+    # the answer first, and every metric with its unit
+    assert text.index("<h2 id='answer'>The answer</h2>") < text.index("<h2 id='question'>")
+    assert "<li class='none'><b>kang_robot</b>: no learned or plug-in entry ran</li>" in text
+    assert "<th>iae [rad·s] (main)</th>" in text and "<th>effort_rms [V rms]</th>" in text
 
 
 def _chromium() -> tuple[str, str] | None:
@@ -115,6 +119,9 @@ def test_the_page_in_a_real_browser_loads_sorts_and_shows_every_image(board_dir,
         assert up == sorted(up) and len(up) >= 5
         header.click()
         assert column() == sorted(up, reverse=True)
+        headline = driver.find_element(By.ID, "answer")
+        assert headline.is_displayed() and headline.location["y"] < table.location["y"]
+        assert "[rad·s]" in header.text  # the unit where the reader reads the number
         shots = Path(os.environ.get("FRICTIONGYM_ARTEFACTS", tmp_path))
         shots.mkdir(parents=True, exist_ok=True)
         assert driver.save_screenshot(str(shots / "leaderboard_page.png"))

@@ -12,15 +12,15 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import frictiongym.envs  # noqa: F401  (registers the ids)
-from frictiongym.envs import env_id
+from frictiongym.envs import scenario_env_id
 from frictiongym.envs.config import ConfigError, scenario_names
-from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.step import REWARD_TERMS
 
 
 def make(scenario, **kw):
-    return gym.make(env_id(load_scenario(scenario).spec.name), scenario=scenario, **kw)
+    """The scenario's env by its own id (its TimeLimit is the scenario's length)."""
+    return gym.make(scenario_env_id(scenario), **kw)
 
 
 @pytest.mark.parametrize("scenario", scenario_names())
