@@ -156,6 +156,7 @@ def run_episodes(
     knowledge: dict | None = None,
     envs: EnvCache | None = None,
     design: PlantSpec | None = None,
+    steps: int | None = None,
     **env_kwargs: Any,
 ) -> list[EpisodeResult]:
     """Run suite episodes of one controller, the one evaluation loop. The controller's own hardware
@@ -167,7 +168,10 @@ def run_episodes(
     as its controller alone would: tests). With `envs`, envs are taken from (and kept in) that cache.
     `design`: the plant model the controller is designed on (default: the scenario's nominal preset, with
     the scenario's own friction structure when the episode pins another: controllers are designed on the
-    plant they were written for), e.g. an identified one. Results in the episodes' order."""
+    plant they were written for), e.g. an identified one. `steps`: stop after this many control periods
+    (a check of a controller before a run; the results then cover those periods). A controller that
+    raises or gives an action that is not one finite real ends the run in one line naming the
+    controller, the scenario, the seed and the step (ControllerError). Results in the episodes' order."""
     cache = envs or EnvCache()
     groups: dict[str, list[int]] = {}
     for i, e in enumerate(episodes):
@@ -175,11 +179,39 @@ def run_episodes(
     results: list[EpisodeResult | None] = [None] * len(episodes)
     for members in groups.values():
         together = _run_together(
-            controller, [episodes[i] for i in members], keep_log, knowledge, cache, design, env_kwargs
+            controller, [episodes[i] for i in members], keep_log, knowledge, cache, design, env_kwargs, steps
         )
         for i, r in zip(members, together, strict=True):
             results[i] = r
     return results  # type: ignore[return-value]  # every index filled
+
+
+class ControllerError(ValueError):
+    """A controller that raised, or gave an action that is not one finite real, during an episode: one
+    line naming the controller, the scenario, the episode's seed and the control period (step); a plain
+    message, so that it crosses a process pool as it is."""
+
+
+def controller_error(
+    controller: Controller, scenario: str, seeds: list[int], step: int, error: Exception
+) -> ControllerError:
+    """The ControllerError of `error` raised by (or about) the controller's act at that step."""
+    seed = f"seed {seeds[0]}" if len(seeds) == 1 else f"seeds {seeds[0]}..{seeds[-1]}"
+    cause = " ".join(str(error).split())[:300]  # one line, bounded: a message is no traceback
+    where = f"controller {controller.name} on {scenario}, {seed}, step {step}"
+    return ControllerError(f"{where}: {type(error).__name__}: {cause}")
+
+
+def _bad_rows(actions: np.ndarray | list, live: np.ndarray) -> list[int]:
+    """The rows of `live` whose action is not one finite real (all of them if that cannot be told)."""
+    bad = []
+    for i, u in zip(live, actions, strict=False):
+        try:
+            if not np.isfinite(np.asarray(u, dtype=float)).all() or np.size(u) != 1:
+                bad.append(int(i))
+        except (TypeError, ValueError):
+            bad.append(int(i))
+    return bad or [int(i) for i in live]
 
 
 def lockstep_actions(actions: np.ndarray | list, n: int) -> np.ndarray:
@@ -206,8 +238,9 @@ def _run_together(
     cache: EnvCache,
     design: PlantSpec | None,
     env_kwargs: dict[str, Any],
+    steps: int | None = None,
 ) -> list[EpisodeResult]:
-    """Episodes sharing one env (see run_episodes), stepped together until each has ended."""
+    """Episodes sharing one env (see run_episodes), stepped together until each has ended (or `steps`)."""
     first = episodes[0]
     env = cache.env(controller, first, **env_kwargs)
     sc = env.scenario  # its spec holds the nominal (document) plant; the episode's draw is hidden
@@ -228,18 +261,30 @@ def _run_together(
     team = controller.lockstep(n)
     team.reset(EpisodeContext(sc, design, know))
     totals, diverged, live = np.zeros(n), np.zeros(n, dtype=bool), rows
-    while len(live):
+    k = 0  # the control period
+    while len(live) and (steps is None or k < steps):
         if team.reads_truth:
             for i in live:
                 team.observe_truth(int(i), core.ground_truth(int(i)), core.params[i])
-        actions = team.act(obs[live], live)
-        if n == 1:
-            o, reward, term, trunc, info = env.step(actions[0])
-            o, r, ended, flags = o[None], [reward], np.array([term or trunc]), [info.get("diverged", False)]
-        else:
-            a = lockstep_actions(actions, len(live))
-            o, r, term, trunc, info = core.step(a, live)
-            ended, flags = term | trunc, info["diverged"]
+        try:
+            actions = team.act(obs[live], live)
+        except Exception as e:  # the controller's own code, e.g. a plug-in's wrong signature
+            raise controller_error(controller, sc.name, [episodes[i].seed for i in live], k, e) from e
+        try:
+            if n == 1:
+                o, reward, term, trunc, info = env.step(actions[0])
+                o, r, ended = o[None], [reward], np.array([term or trunc])
+                flags = [info.get("diverged", False)]
+            else:
+                a = lockstep_actions(actions, len(live))
+                o, r, term, trunc, info = core.step(a, live)
+                ended, flags = term | trunc, info["diverged"]
+        except ValueError as e:  # check_action's: the action is not one finite real
+            if not str(e).startswith("action"):
+                raise
+            seeds = [episodes[i].seed for i in _bad_rows(actions, live)]
+            raise controller_error(controller, sc.name, seeds, k, e) from e
+        k += 1
         obs[live] = o
         totals[live] += r
         diverged[live] = flags

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -32,8 +32,8 @@ from frictiongym.envs.suites import Episode, load_suite, suite_names
 
 from . import engine, registry, stats
 from . import leaderboard_report as report
-from .evaluate import EnvCache, EpisodeResult, run_episode
-from .figures import save_figure
+from .evaluate import EnvCache, EpisodeResult, run_episode, run_episodes
+from .figures import save_figure, smallest_text_px
 from .leaderboard_page import page
 from .stats import MAX_EFFORT_RATIO, why_not_beats
 
@@ -237,23 +237,31 @@ def responses(
     randomize: dict[str, bool],
     models: tuple[str, ...] = (),
 ) -> dict[str, list[EpisodeResult]]:
-    """Per scenario, the leading entry (lowest mean main metric) on its median episode, beside the
+    """Per scenario, the best learned or plug-in entry (lowest mean main metric) and the best classical
+    row that is a result (the baseline) on the median episode of the first of them, beside the
     uncompensated loop and Ideal (that loop without friction) on the same seed, re-run with logs: what
-    the entry does against what it improves on and the friction-free reference."""
+    each side does against what it improves on and the friction-free reference."""
     by: dict[tuple[str, str], dict[int, EpisodeResult]] = defaultdict(dict)
     for r in results:
         by[r.scenario, r.controller][r.seed] = r
     out = {}
     for sc, rows in table.items():
         main, loop = scenarios[sc].main_metric, scenarios[sc].uncompensated
-        lead = next((r["controller"] for r in rows if entry(r["controller"])), None)
+        learned = next(
+            (r["controller"] for r in rows if entry(r["controller"]) and not classical(r["controller"])), None
+        )
+        best = next((r["controller"] for r in rows if r["controller"] == r["baseline"]), None)
+        lead = learned or best
+        if lead is None:
+            continue
         finite = sorted(
             (r.metrics[main], seed) for seed, r in by[sc, lead].items() if math.isfinite(r.metrics[main])
         )
         if not finite:
             continue
         seed = finite[(len(finite) - 1) // 2][1]  # the median episode (the lower one of an even count)
-        picked = [by[sc, name][seed] for name in dict.fromkeys([lead, loop, "Ideal"])]
+        names = [n for n in dict.fromkeys([learned, best, loop, "Ideal"]) if n is not None]
+        picked = [by[sc, name][seed] for name in names if seed in by[sc, name]]
         out[sc] = with_logs(picked, randomize[sc], models)
     return out
 
@@ -269,7 +277,10 @@ class Board:
     aggregate: list[dict]  # aggregate
     verdicts: list[dict]  # verdicts
     penalties: dict[str, float]  # penalty, per scenario
-    responses: dict[str, list[EpisodeResult]]  # per scenario: leading entry, loop, Ideal, with logs
+    responses: dict[str, list[EpisodeResult]]  # per scenario: best learned, best classical, loop, Ideal
+    about: dict[str, str] = field(
+        default_factory=dict
+    )  # saved model's id -> what it is (registry.descriptions)
 
 
 def write(board: Board, out: Path) -> None:
@@ -279,7 +290,11 @@ def write(board: Board, out: Path) -> None:
     atomic_text(out / "leaderboard.csv", report.table_csv(board))
     atomic_text(out / "aggregate.csv", report.aggregate_csv(board.aggregate))
     atomic_text(out / "answer.md", report.answer(board))
-    names = [save_figure(fig, out, name) for name, fig in report.figures(board)]
+    text_px = {}
+    for name, fig in report.figures(board):
+        text_px[name] = smallest_text_px(fig)
+        save_figure(fig, out, name)
+    names = list(text_px)
     md = report.markdown(board)
     atomic_text(out / "leaderboard.md", md + "\n" + "".join(f"![{f}]({f})\n" for f in names))
     provenance = {
@@ -290,7 +305,7 @@ def write(board: Board, out: Path) -> None:
         "episodes": f"{len(board.results)} rows",
     }
     figures = {f: (out / f).read_bytes() for f in names}
-    atomic_text(out / "index.html", page(board, figures, provenance))
+    atomic_text(out / "index.html", page(board, figures, provenance, text_px))
 
 
 def run(
@@ -313,9 +328,12 @@ def run(
     available = registry.available(models)
     names = controllers or registry.default_entries(models)
     unknown = [n for n in names if n not in available]
+    if hints := [h for h in map(registry.unknown_hint, unknown) if h]:
+        raise ValueError("; ".join(hints))
     if unknown:
         raise ValueError(f"unknown controllers {unknown}; available: {list(available)}")
     episodes = episodes if episodes is not None else load_suite(suite)
+    check_plugins(models, episodes)
     scenarios = {name: load_scenario(name) for name in dict.fromkeys(e.scenario for e in episodes)}
     loops = [s.uncompensated for s in scenarios.values()]  # g needs them on every episode
     names = list(dict.fromkeys([*REFERENCES, *loops, *names]))
@@ -334,6 +352,23 @@ def run(
         where = f": {out / 'skipped.csv'} gives each with its reason" if out is not None else ""
         print(f"skipped {len(skipped)} (controller, scenario) pairs that do not apply{where}")
     return results, summarize_and_write(suite, episodes, results, models, out)
+
+
+def check_plugins(sources: tuple[str, ...], episodes: list[Episode]) -> None:
+    """One control period of each of the user's controllers (the "file.py:Class" and "module:Class"
+    sources) on the first episode of each scenario it applies to, before any episode of the run: a wrong
+    signature, an exception or a command that is not one finite real ends the run here, in one line
+    naming the controller, scenario, seed and step (evaluate.ControllerError)."""
+    firsts: dict[str, Episode] = {}
+    for e in episodes:
+        firsts.setdefault(e.scenario, e)
+    envs = EnvCache()
+    for spec in filter(registry.is_controller_spec, sources):
+        make = registry.controller_factory(spec)
+        for e in firsts.values():
+            controller = make()
+            if controller.why_not(envs.scenario(e)) is None:
+                run_episodes(controller, [e], envs=envs, steps=1)
 
 
 def summarize_and_write(
@@ -358,6 +393,7 @@ def summarize_and_write(
             verdicts(table, scenarios),
             {sc: penalty(results, s) for sc, s in scenarios.items()},
             responses(results, table, scenarios, randomize, models),
+            registry.descriptions(models),
         )
         out.mkdir(parents=True, exist_ok=True)
         write(board, out)

@@ -31,6 +31,7 @@ tr.ref td { color: #777; font-style: italic; background: #fafafa; }
 tr.baseline td:first-child { font-weight: bold; }
 tr.chatters td:first-child { text-decoration: line-through; }
 .provenance, .note { color: #555; font-size: 12.5px; }
+small.about { color: #666; }
 img { max-width: 100%; border: 1px solid #eee; margin: 0.5em 0; }
 nav a { margin-right: 0.8em; }
 #answer li { margin: 0.3em 0; }
@@ -89,7 +90,7 @@ def _aggregates(board: Board) -> list[str]:
            "stratified-bootstrap interval; each set of scenarios is ranked on its own.</p>"]  # fmt: skip
     for a in board.aggregate:
         rows = [
-            f"<tr><td>{_e(r['controller'])}</td><td data-v='{i + 1}'>{i + 1}</td>{_ci(r['iqm'])}</tr>"
+            f"<tr>{_named(board, r['controller'])}<td data-v='{i + 1}'>{i + 1}</td>{_ci(r['iqm'])}</tr>"
             for i, r in enumerate(a["rows"])
         ]
         rows += [
@@ -114,7 +115,7 @@ def _verdicts(board: Board) -> list[str]:
             else f"<td class='no'>no: {_e(j['why_not'])}</td>"
         )
         rows.append(
-            f"<tr><td>{_e(_with_unit(board, j['scenario']))}</td><td>{_e(j['controller'])}</td>"
+            f"<tr><td>{_e(_with_unit(board, j['scenario']))}</td>{_named(board, j['controller'])}"
             f"<td>{_e(j['baseline'])}</td>{_ci((v['diff'], v['diff_lo'], v['diff_hi']))}"
             f"<td data-v='{_num(j['effort_ratio'])}'>{j['effort_ratio']:.2f}</td>{verdict}</tr>"
         )
@@ -137,10 +138,10 @@ def _scenarios(board: Board) -> list[str]:
         for r in rows:
             cls = "ref" if r["reference"] else "baseline" if r["controller"] == r["baseline"] else ""
             cls = "chatters" if r.get("chatters") else cls
-            name = _e(r["controller"]) + (" (uncompensated)" if r["uncompensated"] else "")
-            name += f" <small>(not a result: {_e(r['chatters'])})</small>" if r.get("chatters") else ""
+            suffix = " (uncompensated)" if r["uncompensated"] else ""
+            suffix += f" <small>(not a result: {_e(r['chatters'])})</small>" if r.get("chatters") else ""
             cells = [_ci(r["main"]), _ci(r["g"]), _ci(r["g_tracking"]), *(_ci(r["metrics"][m]) for m in sec)]
-            body.append(f"<tr class='{cls}'><td>{name}</td>{''.join(cells)}</tr>")
+            body.append(f"<tr class='{cls}'>{_named(board, r['controller'], suffix)}{''.join(cells)}</tr>")
         head = [
             "controller",
             f"{s.main_metric} [{s.metric_unit(s.main_metric)}] (main)",
@@ -152,9 +153,15 @@ def _scenarios(board: Board) -> list[str]:
     return out
 
 
-def page(board: Board, figures: dict[str, bytes], provenance: dict[str, str]) -> str:
-    """index.html's text: the board's tables (sortable), the figures (name: PNG bytes) embedded, the
-    provenance (label: value) under the title."""
+def page(
+    board: Board,
+    figures: dict[str, bytes],
+    provenance: dict[str, str],
+    text_px: dict[str, float] | None = None,
+) -> str:
+    """index.html's text: the board's tables (sortable), the figures (name: PNG bytes) embedded at their
+    natural width (each with data-text-px, its smallest text's height in px there: figures.smallest_text_px),
+    the provenance (label: value) under the title."""
     prov = "; ".join(f"{_e(k)}: {_e(v)}" for k, v in provenance.items())
     parts = [
         "<!doctype html><html lang='en'><head><meta charset='utf-8'>",
@@ -182,9 +189,21 @@ def page(board: Board, figures: dict[str, bytes], provenance: dict[str, str]) ->
     parts.append("<h2 id='figures'>Figures</h2>")
     for name, png in figures.items():
         data = base64.b64encode(compact_png(png)).decode("ascii")
-        parts.append(f"<h3>{_e(name)}</h3><img alt='{_e(name)}' src='data:image/png;base64,{data}'>")
+        px = (text_px or {}).get(name, math.nan)
+        parts.append(
+            f"<h3>{_e(name)}</h3><img alt='{_e(name)}' data-text-px='{_num(px)}' "
+            f"src='data:image/png;base64,{data}'>"
+        )
     parts.append(f"<script>{SCRIPT}</script></body></html>")
     return "\n".join(parts) + "\n"
+
+
+def _named(board: Board, name: str, suffix: str = "") -> str:
+    """A row's controller cell: its id (escaped), then what it is where the id alone says little (a saved
+    model: design, training scenario, seed)."""
+    about = board.about.get(name)
+    small = f"<br><small class='about'>{_e(about)}</small>" if about else ""
+    return f"<td>{_e(name)}{suffix}{small}</td>"
 
 
 def _with_unit(board: Board, scenario: str) -> str:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import textwrap
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
@@ -376,8 +377,17 @@ def off_scale(ax: Any, x: float, y: float, lim: tuple[float, float]) -> bool:
         return False
     edge, ha = (lim[0], "left") if x < lim[0] else (lim[1], "right")
     ax.plot(edge, y, "<" if x < lim[0] else ">", color="0.35", ms=5)
-    ax.annotate(f"{x:.3g} (off scale)", (edge, y), fontsize=6, ha=ha, va="bottom", color="0.35")
+    ax.annotate(f"{x:.3g} (off scale)", (edge, y), fontsize=7, ha=ha, va="bottom", color="0.35")
     return True
+
+
+# the reference rows' lines in the performance profiles: one style each (they share a grey)
+REFERENCE_STYLE = {"Zero": ":", "Ideal": "--", "TrackingLimit": "-.", "Oracle": (0, (5, 1, 1, 1, 1, 1))}
+
+
+def _wrapped(title: str, width: int = 70) -> str:
+    """A panel title on lines of at most `width` characters (a long list of scenarios is not clipped)."""
+    return textwrap.fill(title, width)
 
 
 def grid(plt: Any, n: int, ncols: int, width: float, height: float) -> tuple[Any, list[Any]]:
@@ -391,12 +401,26 @@ def grid(plt: Any, n: int, ncols: int, width: float, height: float) -> tuple[Any
     return fig, flat[:n]
 
 
+def response_role(name: str, s: Scenario, board: Board) -> str:
+    """What a row of a response figure is: the best learned or plug-in entry, the best classical result
+    (the baseline), the uncompensated loop or the friction-free one (Ideal)."""
+    if name == "Ideal":
+        return "friction removed"
+    if name == s.uncompensated:
+        return "uncompensated loop"
+    rows = board.table[s.name]
+    if any(r["controller"] == name and r["controller"] == r["baseline"] for r in rows):
+        return "best classical result"
+    return "best learned or plug-in"
+
+
 def figures(board: Board) -> Iterator[tuple[str, Any]]:
     """(file name, matplotlib figure) in leaderboard.md's order: per scenario the episodes' g (1 - m/m_Zero
     where g is not scored) of every row, ranked; the per-plant IQM of g with intervals; the per-plant
-    performance profiles of g; and per scenario the time response of the leading entry against the
-    uncompensated loop and Ideal (board.responses). Axes are set by the entries, never by a reference
-    row; panels sit in a grid. One at a time: the caller saves and closes each before the next."""
+    performance profiles of g; and per scenario the time response of the best learned or plug-in entry
+    and the best classical result against the uncompensated loop and Ideal (board.responses). Axes are
+    set by the entries, never by a reference row; panels sit in a grid of at most two columns (the page
+    shows each at its natural width). One at a time: the caller saves and closes each before the next."""
     results, table, agg, scenarios = board.results, board.table, board.aggregate, board.scenarios
     plt = pyplot()
     colour = palette(list(dict.fromkeys(r.controller for r in results)))
@@ -407,7 +431,7 @@ def figures(board: Board) -> Iterator[tuple[str, Any]]:
 
     scs = list(table)
     tallest = max(len(rows) for rows in table.values())
-    fig, axes = grid(plt, len(scs), 4, 4.6, 0.17 * tallest + 1.3)
+    fig, axes = grid(plt, len(scs), 2, 5.0, 0.17 * tallest + 1.3)
     for ax, sc in zip(axes, scs, strict=True):
         scored = scenarios[sc].limit_score != "none"
         order = [r["controller"] for r in table[sc] if r["controller"] != ZERO or not scored]
@@ -422,7 +446,7 @@ def figures(board: Board) -> Iterator[tuple[str, Any]]:
             mean = float(np.nanmean(s)) if np.isfinite(s).any() else math.nan
             if not off_scale(ax, mean, i, lim) and math.isfinite(mean):
                 ax.plot([min(max(mean, lim[0]), lim[1])] * 2, [i - 0.35, i + 0.35], "k-", lw=1.5)
-        ax.set_yticks(range(len(order)), order, fontsize=6)
+        ax.set_yticks(range(len(order)), order, fontsize=7)
         ax.invert_yaxis()
         ax.set_xlim(*lim)
         for x in (0.0, 1.0) if scored else (0.0,):
@@ -446,26 +470,27 @@ def figures(board: Board) -> Iterator[tuple[str, Any]]:
                     continue
                 style = {"fmt": "s" if ref else "o", "color": colour[r["controller"]], "capsize": 3}
                 ax.errorbar(m, i, xerr=[[m - lo], [hi - m]], **style)
-            ax.set_yticks(range(len(rows)), [r["controller"] for r in rows], fontsize=6)
+            ax.set_yticks(range(len(rows)), [r["controller"] for r in rows], fontsize=7)
             ax.invert_yaxis()
             ax.set_xlim(*lim)
             ax.axvline(0.0, color="0.6", lw=0.8)
             ax.axvline(1.0, color="0.6", lw=0.8)
-            ax.set_title(f"{a['plant']}: {', '.join(a['scenarios'])}", fontsize=7, wrap=True)
+            ax.set_title(_wrapped(f"{a['plant']}: {', '.join(a['scenarios'])}"), fontsize=7)
             ax.set_xlabel("IQM of g (95 % stratified bootstrap); grey squares: references", fontsize=7)
         yield "aggregate_iqm.png", fig
 
-        fig, axes = grid(plt, len(sets), 3, 4.6, 3.8)
+        legend_rows = max(math.ceil(len(a["pooled"]) / 2) for a in sets)
+        fig, axes = grid(plt, len(sets), 2, 5.0, 3.0 + 0.16 * legend_rows)
         for ax, a in zip(axes, sets, strict=True):
             entries = [x for c, g in a["pooled"].items() if c not in REFERENCES for x in g]
             taus = np.linspace(*span(entries, (0.0, 1.0)), 201)
             for c, g in a["pooled"].items():
-                ref = c in REFERENCES
                 profile = stats.performance_profile(g, taus)
-                ax.plot(taus, profile, "--" if ref else "-", label=c, color=colour[c], lw=1)
+                ax.plot(taus, profile, linestyle=REFERENCE_STYLE.get(c, "-"), label=c, color=colour[c], lw=1)
             ax.set_xlabel("g threshold τ", fontsize=7)
-            ax.set_title(f"{a['plant']}: {', '.join(a['scenarios'])}", fontsize=7, wrap=True)
-            ax.legend(fontsize=5, ncol=2)
+            ax.set_title(_wrapped(f"{a['plant']}: {', '.join(a['scenarios'])}"), fontsize=7)
+            # below the panel, so that no curve is hidden behind it
+            ax.legend(fontsize=7, ncol=2, loc="upper center", bbox_to_anchor=(0.5, -0.22), frameon=False)
         axes[0].set_ylabel("fraction of episodes with g > τ", fontsize=7)
         yield "performance_profile.png", fig
 
@@ -475,17 +500,20 @@ def figures(board: Board) -> Iterator[tuple[str, Any]]:
         fig, ax = plt.subplots(3, 1, figsize=(7.5, 6.5), sharex=True)
         ref = runs[0].log
         ax[0].plot(ref["t"], ref["reference"], "k:", lw=1, label="reference")
-        for r, style in zip(runs, ("-", "-", "--"), strict=False):
+        metric_unit = s.metric_unit(s.main_metric)
+        for r in runs:
             g = r.log
-            role = " (uncompensated loop)" if r.controller == s.uncompensated and r is not runs[0] else ""
-            label = f"{r.controller}{role}: {s.main_metric} {r.metrics[s.main_metric]:.3g}"
-            c = "0.45" if r.controller == "Ideal" else None
+            ideal = r.controller == "Ideal"
+            label = f"{r.controller} ({response_role(r.controller, s, board)}): {s.main_metric} "
+            label += f"{r.metrics[s.main_metric]:.3g} {metric_unit}"
+            style, c = ("--", "0.45") if ideal else ("-", None)
             ax[0].plot(g["t"], g["output"], style, lw=1.2, color=c, label=label)
             ax[1].plot(g["t"], g["output"] - g["reference"], style, lw=1, color=c)
             ax[2].step(g["t"], g["command"], style, lw=1, where="pre", color=c)
-        ax[0].set(
-            title=f"{sc}: the leading entry's median episode, seed {runs[0].seed}", ylabel=f"output ({unit})"
+        ax[0].set_title(
+            _wrapped(f"{sc}, seed {runs[0].seed}: the median episode of {runs[0].controller}"), fontsize=9
         )
+        ax[0].set(ylabel=f"output ({unit})")
         ax[0].legend(fontsize=7)
         ax[1].set(ylabel=f"error ({unit})")
         ax[2].set(xlabel="t (s)", ylabel=f"command ({cmd})")

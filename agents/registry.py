@@ -21,6 +21,7 @@ alike, so worker processes build the same controllers by name.
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import importlib
 import importlib.util
@@ -206,7 +207,15 @@ def controller_factory(spec: str) -> Callable[[], Controller]:
         else:
             module = importlib.import_module(module_name)
         factory = getattr(module, attr)
-    except (ImportError, AttributeError, OSError, ValueError, SyntaxError) as e:
+    except AttributeError:
+        own = sorted(
+            k
+            for k, v in vars(module).items()
+            if isinstance(v, type) and issubclass(v, Controller) and v.__module__ == module.__name__
+        )
+        has = f"its controllers: {', '.join(own)}" if own else "it defines no Controller subclass"
+        raise ValueError(f"controller {spec!r}: {module_name} has no {attr!r}; {has}") from None
+    except (ImportError, OSError, ValueError, SyntaxError) as e:
         raise ValueError(f"controller {spec!r}: {type(e).__name__}: {e}") from None
     try:
         made = factory() if callable(factory) else factory
@@ -215,6 +224,22 @@ def controller_factory(spec: str) -> Callable[[], Controller]:
     if not isinstance(made, Controller):
         raise ValueError(f"controller {spec!r}: {attr} gives a {type(made).__name__}, not a Controller")
     return factory
+
+
+def unknown_hint(name: str) -> str:
+    """What to write instead of an unknown controller name that names a file or a module: its class after a
+    colon (path.py:Class, module:Class), with the classes a file defines (read, not run), or ""."""
+    path = Path(name)
+    if name.endswith(".py") and path.is_file():
+        try:
+            classes = [n.name for n in ast.parse(path.read_text()).body if isinstance(n, ast.ClassDef)]
+        except (SyntaxError, UnicodeDecodeError, OSError):
+            classes = []
+        defined = f" (it defines {', '.join(classes)})" if classes else ""
+        return f"{name} is a file: name its class as {name}:ClassName{defined}"
+    if name.endswith(".py") or "/" in name:
+        return f"{name}: no such file (a plug-in is path/to/file.py:ClassName)"
+    return ""
 
 
 def spec_of(controller: str | type | Callable[[], Controller]) -> str:
@@ -302,6 +327,23 @@ def model_factory(folder: Path) -> tuple[str, Callable[[], Controller]]:
 def _manifests(models: tuple[str, ...]) -> dict[str, Manifest]:
     """The manifests of the saved models under `models`, by model name (read once per process)."""
     return {m.name: m for m in (Manifest.read(folder) for folder in model_dirs(models))}
+
+
+def descriptions(models: Sequence[str | Path]) -> dict[str, str]:
+    """What each saved model of `models` is, in words a reader follows beside its id: the design (the
+    algorithm, a residual over which base), what it was trained on and its training seed, from its
+    manifest (e.g. "SAC residual over PID+FF, trained on emps_random, seed 1")."""
+    out = {}
+    for name, m in _manifests(tuple(str(x) for x in models)).items():
+        design = (
+            f"{m.algorithm} residual over {m.base_controller}"
+            if m.base_controller
+            else f"{m.algorithm} policy"
+        )
+        trained = f", trained on {m.scenario}" if m.scenario else ""
+        seed = f", seed {m.seed}" if m.seed is not None else ""
+        out[name] = design + trained + seed
+    return out
 
 
 def why_not(name: str, models: Sequence[str | Path] = ()) -> Callable[[Scenario], str | None]:

@@ -195,8 +195,9 @@ def test_figures_are_scaled_by_the_entries_and_the_response_shows_the_loop_and_i
     """Doing nothing on the M220's reversals scores g ≈ -20 (the friction penalty is small beside the
     whole error): drawn on the aggregate's axis it would squeeze every entry into one dot near 0-1, so
     the axis is the entries' and Zero is an off-scale mark with its value. The response figure shows the
-    leading entry beside the uncompensated loop and Ideal on one seed, in the plant's units, and the
-    per-scenario panels sit in a grid of at most 4 columns."""
+    best classical result (no learned entry runs here) beside the uncompensated loop and Ideal on one
+    seed, in the plant's units, and the per-scenario panels sit in a grid of at most 2 columns (the page
+    shows them at their natural width, their text legible)."""
     drawn, save_figure = {}, leaderboard.save_figure
 
     def save(fig, out, name):
@@ -213,12 +214,41 @@ def test_figures_are_scaled_by_the_entries_and_the_response_shows_the_loop_and_i
     assert zero_g < -5 and agg.get_xlim()[0] > zero_g / 2
     assert any("off scale" in t.get_text() for t in agg.texts)
     scores = drawn["scores.png"]
-    assert scores.axes[0].get_gridspec().ncols <= 4
+    assert scores.axes[0].get_gridspec().ncols <= 2
     response = drawn["response_m220_reversal_tracking.png"].axes
     labels = [line.get_label() for line in response[0].get_lines()]
     rows = table["m220_reversal_tracking"]
-    lead = next(r["controller"] for r in rows if leaderboard.entry(r["controller"]))
-    assert labels[0] == "reference" and labels[1].startswith(lead + ":")
-    assert any(label.startswith("Ideal:") for label in labels)
-    assert any("(uncompensated loop)" in label for label in labels) or lead == "PID"
+    best = next(r["controller"] for r in rows if r["controller"] == r["baseline"])
+    assert labels[0] == "reference" and labels[1].startswith(f"{best} (best classical result): ")
+    assert labels[1].endswith(" rad")  # the main metric with its unit
+    assert any(label.startswith("Ideal (friction removed):") for label in labels)
+    assert any("(uncompensated loop)" in label for label in labels) or best == "PID"
     assert response[0].get_ylabel() == "output (rad)" and response[2].get_ylabel() == "command (V)"
+
+
+def test_the_response_shows_the_best_learned_entry_and_the_page_says_what_it_is(tmp_path, monkeypatch):
+    """With a saved model on the board, the response figure draws it (the best learned or plug-in entry)
+    beside the best classical result, and the page names the model's design, training scenario and seed
+    beside its id."""
+    pytest.importorskip("safetensors")
+    drawn, save_figure = {}, leaderboard.save_figure
+
+    def save(fig, out, name):
+        drawn[name] = fig
+        return save_figure(fig, out, name)
+
+    monkeypatch.setattr(leaderboard, "save_figure", save)
+    folder = ROOT / "agents/models/generalist/GenSAC-kang-ff-kang_random-s0"
+    episodes = [Episode("kang_ramp", s, True) for s in (5000, 5001)]
+    leaderboard.run(
+        controllers=["Cascade+MFF", "GenSAC-kang-ff-kang_random-s0"],
+        out=tmp_path,
+        progress=False,
+        episodes=episodes,
+        models=(str(folder),),
+    )
+    labels = [line.get_label() for line in drawn["response_kang_ramp.png"].axes[0].get_lines()]
+    assert labels[1].startswith("GenSAC-kang-ff-kang_random-s0 (best learned or plug-in): iae ")
+    assert any(" (best classical result): iae " in label for label in labels[2:])
+    page = (tmp_path / "index.html").read_text()
+    assert "<small class='about'>SAC residual over TaskScheduled, trained on kang_random, seed 0</small>" in page

@@ -81,7 +81,8 @@ def _chromium() -> tuple[str, str] | None:
 
 
 def test_the_page_in_a_real_browser_loads_sorts_and_shows_every_image(board_dir, tmp_path):
-    """Headless chromium opens index.html: no console error, every image decoded (naturalWidth > 0), a
+    """Headless chromium opens index.html: no console error, every image decoded (naturalWidth > 0) with its
+    text at least 9 px at the page's width, the answer first, the units in the headers, a
     click on a scenario table's main-metric header sorts its rows ascending by that column's values, a
     second click descending; a screenshot goes to $FRICTIONGYM_ARTEFACTS (else the test's folder)."""
     paths = _chromium()
@@ -107,6 +108,11 @@ def test_the_page_in_a_real_browser_loads_sorts_and_shows_every_image(board_dir,
         images = driver.find_elements(By.TAG_NAME, "img")
         widths = [driver.execute_script("return arguments[0].naturalWidth", i) for i in images]
         assert widths and min(widths) > 0
+        # every figure's smallest text is at least 9 px as the page shows it (its natural size x the scale)
+        for img, natural in zip(images, widths, strict=True):
+            shown = driver.execute_script("return arguments[0].clientWidth", img)
+            px = float(img.get_attribute("data-text-px")) * shown / natural
+            assert px >= 9, f"{img.get_attribute('alt')}: text {px:.1f} px at the page's width"
         table = driver.find_element(By.CSS_SELECTOR, "h3#kang_ramp + p + table")
         header = table.find_elements(By.TAG_NAME, "th")[1]  # the main metric
 

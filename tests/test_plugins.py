@@ -1,0 +1,95 @@
+"""A user's controller (a plug-in, path.py:Class) is checked before the work starts: one control period on
+each of its scenarios before any episode runs, and every mistake ends in one line naming what and where
+(the controller, scenario, seed and step; the file's classes where the name is wrong or missing)."""
+
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import pytest
+
+from frictiongym.scripts import cli
+
+PLUGIN = '''
+from typing import ClassVar
+
+from frictiongym.agents.base import PhysicalController
+
+
+class Signature(PhysicalController):
+    """A command without the reference argument."""
+
+    name: ClassVar[str] = "Signature"
+
+    def command(self, y):
+        return 0.0
+
+
+class NaNs(PhysicalController):
+    """NaN from step STEP on."""
+
+    name: ClassVar[str] = "NaNs"
+    step = 0
+
+    def start(self, ctx):
+        self.k = 0
+
+    def command(self, y, r):
+        self.k += 1
+        return float("nan") if self.k > self.step else 0.0
+'''
+
+
+@pytest.fixture
+def plugin(tmp_path: Path) -> Path:
+    path = tmp_path / "mine.py"
+    path.write_text(textwrap.dedent(PLUGIN))
+    return path
+
+
+def leaderboard(capsys: pytest.CaptureFixture, out: Path, *controllers: str, workers: int = 1) -> str:
+    """`frictiongym leaderboard` on two Kang scenarios with these controllers: its stderr, after checking
+    it failed with exit code 2, ending in one line (no traceback)."""
+    argv = ["leaderboard", "--scenarios", "kang_ramp", "kang_regulation", "--seeds", "5000-5001"]
+    argv += [
+        "--randomize",
+        "--models",
+        "--workers",
+        str(workers),
+        "--out",
+        str(out),
+        "--controllers",
+        *controllers,
+    ]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err.strip()  # the progress bar, then the error
+    assert "Traceback" not in err and err.splitlines()[-1].startswith("error: "), err
+    return err.splitlines()[-1]
+
+
+def test_a_wrong_command_signature_is_named_before_any_episode(plugin, tmp_path, capsys):
+    err = leaderboard(capsys, tmp_path / "run", "PID", f"{plugin}:Signature")
+    assert "controller Signature on kang_ramp, seed 5000, step 0: TypeError" in err and "command()" in err
+    assert not (tmp_path / "run" / "episodes.csv").exists()  # no reference episode ran
+
+
+def test_a_nan_command_is_named_with_its_step(plugin, tmp_path, capsys):
+    err = leaderboard(capsys, tmp_path / "first", f"{plugin}:NaNs")
+    assert "controller NaNs on kang_ramp, seed 5000, step 0: ValueError: actions must be finite" in err
+    assert not (tmp_path / "first" / "episodes.csv").exists()
+    # NaN later in the episode: the run stops at that step, on a worker of the pool, in one line
+    later = plugin.with_name("later.py")
+    later.write_text(plugin.read_text().replace("step = 0", "step = 7"))
+    err = leaderboard(capsys, tmp_path / "later", f"{later}:NaNs", workers=2)
+    assert "controller NaNs on kang_ramp, seeds 5000..5001, step 7: ValueError: actions must be finite" in err
+
+
+def test_a_file_without_its_class_gets_the_form_and_the_classes_it_defines(plugin, tmp_path, capsys):
+    err = leaderboard(capsys, tmp_path / "run", str(plugin))
+    assert f"{plugin} is a file: name its class as {plugin}:ClassName (it defines Signature, NaNs)" in err
+
+
+def test_a_wrong_class_name_lists_the_files_controllers(plugin, tmp_path, capsys):
+    err = leaderboard(capsys, tmp_path / "run", f"{plugin}:Nope")
+    assert "has no 'Nope'; its controllers: NaNs, Signature" in err
