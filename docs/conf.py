@@ -26,6 +26,7 @@ exclude_patterns = ["_build", "bench", "_extra"]
 html_theme = "furo"
 html_title = f"frictiongym {release}"
 html_static_path = ["_static"]
+html_css_files = ["frictiongym.css"]  # tables that fit the page
 html_extra_path = ["_extra"]  # copied as is: the committed leaderboard page (leaderboard/index.html)
 autodoc_member_order = "bysource"
 autodoc_typehints = "description"

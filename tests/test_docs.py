@@ -3,6 +3,7 @@ resolves (scripts/docs.py); the generated plant pages come from the code (ids, u
 link check finds a broken link and a missing anchor; the frames show each plant on a lit floor."""
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -33,8 +34,9 @@ def test_the_site_builds_without_warnings_and_its_links_resolve(tmp_path):
     site = tmp_path / "site"
     assert docs.build(site) == []
     pages = {p.relative_to(site).as_posix() for p in site.rglob("*.html")}
-    assert {"index.html", "tutorials/index.html", "generated/api.html", "generated/scenarios.html",
-            "leaderboard/index.html"} <= pages
+    assert {"index.html", "installation.html", "quickstart.html", "changelog.html", "troubleshooting.html",
+            "tutorials/index.html", "generated/api/index.html", "generated/scenarios.html",
+            "leaderboard/index.html"} <= pages  # fmt: skip
     for plant, env_id in [("m220", "frictiongym/M220-v0"), ("emps", "frictiongym/EMPS-v0")]:
         page = (site / "generated" / "plants" / f"{plant}.html").read_text()
         assert env_id in page and f"_images/{plant}.png" in page
@@ -42,9 +44,17 @@ def test_the_site_builds_without_warnings_and_its_links_resolve(tmp_path):
     emps = (site / "generated" / "plants" / "emps.html").read_text()
     # the carriage's identified mass with its unit (a slide: kg, not kg·m²), its scenarios' ids
     assert "95.11 kg" in emps and "frictiongym/EMPS-Tracking-v0" in emps
-    api = (site / "generated" / "api.html").read_text()
-    assert 'id="frictiongym.agents.registry.make"' in api
-    assert 'id="frictiongym.envs.servo_env.ServoEnv"' in api
+    api = site / "generated" / "api"
+    assert 'id="frictiongym.agents.registry.make"' in (api / "frictiongym.agents.registry.html").read_text()
+    assert 'id="frictiongym.envs.servo_env.ServoEnv"' in (api / "frictiongym.envs.servo_env.html").read_text()
+    assert 'href="frictiongym.agents.evaluate.html"' in (api / "index.html").read_text()
+    # a docstring's bullet list is a list, not a literal block: frictiongym.envs's two kinds of id
+    envs = (api / "frictiongym.envs.html").read_text()
+    assert re.search(r"<ul[^>]*>\s*<li><p>one per plant", envs), "the docstring's list is not a list"
+    # a file the reader saves is highlighted as Python, not as a shell heredoc
+    assert "highlight-python" in (site / "tutorials" / "your-controller.html").read_text()
+    changelog = (site / "changelog.html").read_text()
+    assert "v0" in changelog and "Unreleased" in changelog  # the env versions and the releases
 
 
 @pytest.mark.slow

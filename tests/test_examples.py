@@ -64,7 +64,7 @@ def test_a_class_and_a_spec_resolve_to_the_same_controller_and_an_instance_is_re
     ("spec", "why"),
     [
         ("no_such_module_here:X", "ModuleNotFoundError"),
-        (f"{EXAMPLE}:NoSuchClass", "AttributeError"),
+        (f"{EXAMPLE}:NoSuchClass", "has no 'NoSuchClass'; its controllers: SmoothCoulombPID"),
         ("examples/missing.py:X", "is not a file"),
         ("numpy:ones", "ones\\(\\) failed: TypeError"),
         ("fractions:Fraction", "not a Controller"),

@@ -251,4 +251,5 @@ def test_the_response_shows_the_best_learned_entry_and_the_page_says_what_it_is(
     assert labels[1].startswith("GenSAC-kang-ff-kang_random-s0 (best learned or plug-in): iae ")
     assert any(" (best classical result): iae " in label for label in labels[2:])
     page = (tmp_path / "index.html").read_text()
-    assert "<small class='about'>SAC residual over TaskScheduled, trained on kang_random, seed 0</small>" in page
+    about = "SAC residual over TaskScheduled, trained on kang_random, seed 0"
+    assert f"<small class='about'>{about}</small>" in page

@@ -15,15 +15,35 @@ PAGES = sorted(p for p in (ROOT / "docs" / "tutorials").glob("*.md") if p.name !
 BLOCK = re.compile(r"^```(bash|python)\n(.*?)^```$", re.S | re.M)
 
 
+FILE = "# file: "  # a python block that starts so is a file the reader saves at that path, not code to run
+
+
 def script(page: Path) -> str:
-    """The page as one Python script: its python blocks as they are, its bash blocks run by bash."""
-    parts = ["import subprocess"]
+    """The page as one Python script: its python blocks as they are (a block starting `# file: PATH`
+    written to PATH instead), its bash blocks run by bash."""
+    parts = ["import pathlib", "import subprocess"]
     for lang, code in BLOCK.findall(page.read_text()):
-        if lang == "python":
+        if lang == "python" and code.startswith(FILE):
+            path = code.splitlines()[0][len(FILE) :].strip()
+            parts.append(f"pathlib.Path({path!r}).parent.mkdir(parents=True, exist_ok=True)")
+            parts.append(f"pathlib.Path({path!r}).write_text({code!r})")
+        elif lang == "python":
             parts.append(code)
         else:
             parts.append(f"subprocess.run(['bash', '-euo', 'pipefail', '-c', {code!r}], check=True)")
     return "\n".join(parts)
+
+
+def test_tutorials_write_only_under_out():
+    """What a tutorial saves goes under out/ (or a temporary folder), never into the repository's tree."""
+    for page in PAGES:
+        for lang, code in BLOCK.findall(page.read_text()):
+            if lang == "python" and code.startswith(FILE):
+                assert code.splitlines()[0][len(FILE) :].startswith("out/"), page.name
+            for target in re.findall(r"open\(\s*[\"']([^\"']+)[\"']\s*,\s*[\"']w", code):
+                assert target.startswith("out/"), f"{page.name} writes {target}"
+            for target in re.findall(r"--out\s+(\S+)", code):
+                assert target.startswith("out/"), f"{page.name} writes {target}"
 
 
 def test_every_tutorial_is_listed_and_has_code():

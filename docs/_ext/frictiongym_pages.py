@@ -8,7 +8,7 @@ they cannot drift from them. At `builder-inited` it writes generated/ (not commi
 - scenarios.md: every scenario and the suites that hold it;
 - controllers.md: every built-in controller family, its source (its module's docstring), where it
   applies, and the settings file;
-- api.md: the API reference (autodoc) of the modules a user calls.
+- api/: the API reference (autodoc): an index and a page per module a user calls.
 """
 
 from __future__ import annotations
@@ -279,11 +279,31 @@ does not apply to a scenario says why and is skipped). Generated from the regist
 """
 
 
-def api_page() -> str:
-    blocks = "\n\n".join(
-        f"## `{m}`\n\n```{{eval-rst}}\n.. automodule:: {m}\n   :members:\n```" for m in API_MODULES
+def env_versions() -> str:
+    """The environment versions (envs.VERSION_HISTORY) as a table, for the changelog."""
+    from frictiongym.envs import VERSION_HISTORY
+
+    return table(["version", "what changed"], [[v, what] for v, what in VERSION_HISTORY.items()]) + "\n"
+
+
+def api_pages() -> dict[str, str]:
+    """The API reference: an index (the modules, each with its docstring's first sentence) and one page
+    per module (autodoc), as Gymnasium's and stable-baselines3's are."""
+    import importlib
+
+    pages, rows = {}, []
+    for m in API_MODULES:
+        doc = (importlib.import_module(m).__doc__ or "").strip()
+        first = " ".join(doc.split("\n\n")[0].split()).split(". ")[0].rstrip(".")
+        rows.append([f"[`{m}`]({m}.md)", md_cell(first)])
+        pages[f"{m}.md"] = f"# `{m}`\n\n```{{eval-rst}}\n.. automodule:: {m}\n   :members:\n```\n"
+    toc = "\n".join(f"{m}" for m in API_MODULES)
+    pages["index.md"] = (
+        "# API reference\n\nThe modules a user calls, one page each.\n\n"
+        + table(["module", "what it is"], rows)
+        + f"\n```{{toctree}}\n:hidden:\n\n{toc}\n```\n"
     )
-    return f"# API reference\n\nThe docstrings of the modules a user calls.\n\n{blocks}\n"
+    return pages
 
 
 def write(path: Path, text: str) -> None:
@@ -304,19 +324,30 @@ def generate(_app: object = None) -> None:
         write(OUT / "plants" / f"{cls.plant}.md", plant_page(env_id, cls, mine, suites))
     write(OUT / "scenarios.md", scenarios_page(scenarios, suites))
     write(OUT / "controllers.md", controllers_page(scenarios))
-    write(OUT / "api.md", api_page())
+    for name, text in api_pages().items():
+        write(OUT / "api" / name, text)
+    write(OUT / "env_versions.md", env_versions())
 
 
 def plain_docstring(_app: object, _what: str, _name: str, _obj: object, _opts: object, lines: list) -> None:
     """The project's docstrings are plain text (units, formulas, aligned tables), not reStructuredText:
     render them as written. Outside ``inline literals``, | and * are escaped (|e| is not a substitution,
-    configs/*.yaml not emphasis); an indented block (a formula, a table) becomes a literal block."""
+    configs/*.yaml not emphasis); a bullet list ("- " items, their lines continued two spaces in) stays a
+    list; any other indented block (a formula, a table) becomes a literal block."""
     out: list[str] = []
     base = min((len(x) - len(x.lstrip()) for x in lines if x.strip()), default=0)
-    in_block = False
+    in_block = in_list = False
     for line in lines:
         indent = len(line) - len(line.lstrip())
-        if line.strip() and indent > base and not in_block:
+        item = line.strip().startswith("- ") and indent == base
+        if item and not in_list:  # a list starts: a blank line before it
+            if out and out[-1].strip():
+                out.append("")
+            in_list, in_block = True, False
+        elif in_list and line.strip() and not item and indent != base + 2:
+            out.append("")  # the list ends: a blank line after it
+            in_list = False
+        if not in_list and line.strip() and indent > base and not in_block:
             if out and out[-1].strip():
                 out.append("")
             out += [" " * base + "::", ""]
