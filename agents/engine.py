@@ -503,7 +503,7 @@ def finished_run(
     if not run.is_file() or not path.is_file():
         raise RunMismatch(f"{src} holds no finished run (run.json and episodes.csv)")
     options = json.loads(run.read_text())
-    episodes = [Episode(**e) for e in options["episodes"]]
+    episodes = [Episode.from_dict(e) for e in options["episodes"]]
     models = tuple(options["models"])
     jobs, skipped = plan(options["controllers"], episodes, models)
     rows, refused = read_rows(path)

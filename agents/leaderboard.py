@@ -404,6 +404,6 @@ def report_from(src: Path, out: Path) -> dict[str, list[dict]]:
     """The report of the finished run in src (engine.finished_run: read only, every episode checked)
     written to out, e.g. from read-only media; the tables."""
     options, results, _ = engine.finished_run(src)
-    episodes = [Episode(**e) for e in options["episodes"]]
+    episodes = [Episode.from_dict(e) for e in options["episodes"]]
     suite = next((name for name in suite_names() if load_suite(name) == episodes), "inline")
     return summarize_and_write(suite, episodes, results, tuple(options["models"]), out)

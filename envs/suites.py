@@ -25,6 +25,12 @@ class Episode:
     randomize: bool
     params: tuple[tuple[str, float | str], ...] = ()
 
+    @classmethod
+    def from_dict(cls, d: dict) -> Episode:
+        """An episode as asdict wrote it into a run's run.json (JSON has no tuples: its pinned parameters
+        come back as lists), equal to the episode that was written."""
+        return cls(d["scenario"], d["seed"], d["randomize"], tuple(tuple(kv) for kv in d.get("params", ())))
+
     def options(self) -> dict | None:
         """The reset options of the episode (the pinned values, without the structural key)."""
         pinned = {k: v for k, v in self.params if k not in STRUCTURAL}

@@ -10,9 +10,10 @@ finish; rerunning with the same options and --out resumes, and other options int
 refused. Every episode also runs the reference rows (Zero, Ideal: the scenario's uncompensated loop
 without the nonlinear friction, TrackingLimit: the friction-free twin under the linear two-degree-of-
 freedom loop, on tracking scenarios, Oracle: the loop plus the true friction torque) and the
-uncompensated loop. Then prints one table per scenario and writes leaderboard.md, leaderboard.csv,
-aggregate.csv (the per-plant aggregates of g over equal sets of scenarios), answer.md (the suite's
-question per plant) and PNG plots.
+uncompensated loop. Then writes index.html (the page to open in a browser), answer.md (the suite's
+question per plant and per scenario), leaderboard.md, leaderboard.csv, aggregate.csv (the per-plant
+aggregates of g over equal sets of scenarios), skipped.csv (the pairs that do not apply, with their
+reasons) and PNG plots, and prints the answer per plant and where the page is.
 """
 
 from __future__ import annotations

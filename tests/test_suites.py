@@ -79,3 +79,17 @@ def test_a_seed_outside_its_range_or_overlapping_ranges_are_errors(monkeypatch):
     monkeypatch.setattr(suites, "load_yaml", lambda *_a, **_k: overlap)
     with pytest.raises(ConfigError, match=r"seed_ranges.* overlaps"):
         seed_ranges()
+
+
+def test_an_episode_comes_back_from_run_json_equal_to_itself():
+    """run.json holds the episodes as asdict wrote them (JSON: the pinned parameters as lists); read back,
+    they equal the suite's, so a report from a finished run names its suite (not "inline")."""
+    import json
+    from dataclasses import asdict
+
+    from frictiongym.envs.suites import Episode
+
+    suite = [*load_suite("default")[:3], Episode("m220_regulation", 7, True, (("delay", 0.001),))]
+    back = [Episode.from_dict(e) for e in json.loads(json.dumps([asdict(e) for e in suite]))]
+    assert back == suite
+    assert back[:3] != [Episode(**e) for e in json.loads(json.dumps([asdict(e) for e in suite[:3]]))]
