@@ -3,7 +3,7 @@ registers `name = "module:factory"`, the factory taking no arguments and returni
 user's own controller named by where it is defined, without packaging (`my_module:MyController` or
 `path/to/file.py:MyController`, as Gymnasium's `gym.make("module:Env")`: a Controller class or a
 factory taking no arguments; it is listed under its controller's `name`), and saved models: a folder
-with a manifest.yaml and policy.safetensors (agents/model_folder.py: a format that cannot run code), or
+with a manifest.yaml and policy.safetensors (agents/learned/folder.py: a format that cannot run code), or
 a folder of such folders. A run's `models` sources hold the model folders and the user's controllers
 alike, so worker processes build the same controllers by name.
 
@@ -31,6 +31,11 @@ from functools import cache, partial
 from importlib.metadata import entry_points
 from pathlib import Path
 
+from frictiongym.agents.evaluation.limits import Ideal, Oracle, TrackingLimit
+from frictiongym.agents.learned.folder import read_policy
+from frictiongym.agents.learned.manifest import MANIFEST, Manifest
+from frictiongym.agents.learned.policy import LearnedPolicy, policy_why_not
+from frictiongym.agents.tuning.tuned import SUFFIX, Tuned, tunable, tuned_entries
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.scenario import Scenario, load_scenario
 
@@ -56,11 +61,6 @@ from .classical import (
     StateFeedback,
     TaskScheduled,
 )
-from .learned import LearnedPolicy, policy_why_not
-from .limits import Ideal, Oracle, TrackingLimit
-from .manifest import MANIFEST, Manifest
-from .model_folder import read_policy
-from .tuned import SUFFIX, Tuned, tunable, tuned_entries
 
 ENTRY_POINT_GROUP = "frictiongym.controllers"
 
@@ -87,8 +87,8 @@ BUILTIN: dict[str, Callable[[], Controller]] = {
 
 
 def _tuned_twins() -> dict[str, Callable[[], Controller]]:
-    """`<family>[tuned]` for every family of configs/tuned.yaml (agents/tuning.py): a classical baseline
-    like its family, with the settings tuned on the validation suite."""
+    """`<family>[tuned]` for every family of configs/tuned.yaml (agents/tuning/search.py): a classical
+    baseline like its family, with the settings tuned on the validation suite."""
     out: dict[str, Callable[[], Controller]] = {}
     for family, entries in tuned_entries().items():
         if family not in BUILTIN or tunable(BUILTIN[family]) is None:
@@ -142,8 +142,8 @@ def uncompensated_loop(name: str) -> Controller:
     return BUILTIN[name]()
 
 
-# The physical-limit rows (agents/limits.py): with Zero, the references every leaderboard runs on every
-# episode; never ranked as entries, never a baseline.
+# The physical-limit rows (agents/evaluation/limits.py): with Zero, the references every leaderboard runs
+# on every episode; never ranked as entries, never a baseline.
 def linear_loop(name: str) -> Controller:
     """A model feed-forward family without its friction term (the TrackingLimit row's loop)."""
     settings = FeedForwardSettings.defaults()
@@ -296,7 +296,7 @@ def model_dirs(paths: Sequence[str | Path]) -> list[Path]:
 
 def model_factory(folder: Path) -> tuple[str, Callable[[], Controller]]:
     """(name, factory) of a saved model's folder, checked against its manifest and its files read now
-    (model_folder.read_policy: a changed or malformed file fails here, before any episode runs); each
+    (learned.folder.read_policy: a changed or malformed file fails here, before any episode runs); each
     controller the factory makes shares the one immutable network."""
     m = Manifest.read(folder)
     base = m.base_controller

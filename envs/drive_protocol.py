@@ -8,7 +8,7 @@ one datagram a control period each way, little-endian, with sequence numbers and
 
 A drive applies a RUN command; HOLD asks it to hold its safe command (zero) while the controller waits
 (a watchdog); STOP ends the run. The virtual drive (envs/virtual_drive.py) and the controller's loop
-(agents/drive_loop.py) both use these functions; loopback addresses only in the tests.
+(agents/deploy/drive_loop.py) both use these functions; loopback addresses only in the tests.
 """
 
 from __future__ import annotations

@@ -27,7 +27,7 @@ from frictiongym.scripts.options import parser
 if TYPE_CHECKING:  # start-up cost: --help imports no MuJoCo or engine; the functions import what they run
     import mujoco
 
-    from frictiongym.agents import engine
+    from frictiongym.agents.evaluation import engine
 
 PHYSICS_STEPS = 20000  # steps per timing of the bare mj_step loop (best of 5)
 
@@ -39,7 +39,7 @@ def physics_floor(workers: int) -> float:
     import mujoco
 
     from frictiongym.agents import registry
-    from frictiongym.agents.evaluate import EnvCache
+    from frictiongym.agents.evaluation.evaluate import EnvCache
     from frictiongym.envs.suites import load_suite
 
     envs, steps, model = EnvCache(), Counter(), {}
@@ -74,7 +74,8 @@ def timed(
 ) -> tuple[float, int]:
     """Wall time of the default suite into out (for Ray: including the start of its local instance), with
     the saved models of `models` added to the built-in controllers."""
-    from frictiongym.agents import engine, registry
+    from frictiongym.agents import registry
+    from frictiongym.agents.evaluation import engine
     from frictiongym.envs.suites import load_suite
 
     episodes = load_suite("default")
@@ -91,7 +92,7 @@ def main() -> None:
     ap.add_argument("--models", nargs="+", default=[], help="also the suite with these saved-model folders")
     ap.add_argument("--no-serial", dest="serial", action="store_false", help="skip the 1-worker run")
     args = ap.parse_args()
-    from frictiongym.agents import engine
+    from frictiongym.agents.evaluation import engine
 
     physics_floor(args.workers)
     with tempfile.TemporaryDirectory() as d:

@@ -1,5 +1,5 @@
-"""The cost of one control step of an exported controller (agents/runtime.py) against its plant's control
-period: per committed model (numpy and onnxruntime networks) and per classical family, the runtime's
+"""The cost of one control step of an exported controller (agents/deploy/runtime.py) against its plant's
+control period: per committed model (numpy and onnxruntime networks) and per classical family, the runtime's
 time per step (median, 99th percentile and maximum over --steps steps, one thread, this process on one
 core), the step's readings a sine through the plant's range.
 
@@ -69,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
     try:
         from frictiongym.agents import registry  # the controllers
-        from frictiongym.agents.runtime import Runtime, export  # onnx, onnxruntime: the deploy extra
+        from frictiongym.agents.deploy.runtime import Runtime, export  # onnx, onnxruntime: the deploy extra
     except ModuleNotFoundError as e:
         print(missing_extra(e, "deploy", "frictiongym bench-runtime"), file=sys.stderr)
         return 2

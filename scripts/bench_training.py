@@ -170,7 +170,10 @@ def main(argv: list[str] | None = None) -> int:
             return 2
     rows: list[dict[str, Any]] = []
     order = list(setups)
-    from frictiongym.agents.engine import init_worker, run_interruptibly  # start-up cost: after --help
+    from frictiongym.agents.evaluation.engine import (  # start-up cost: after --help
+        init_worker,
+        run_interruptibly,
+    )
 
     def run() -> int:
 

@@ -24,7 +24,7 @@ def main(argv: list[str] | None = None) -> int:
         "--trust-pickle", action="store_true", help="load the SB3 zip and pickle (they can run code)"
     )
     args = ap.parse_args(argv)
-    from frictiongym.agents.model_convert import convert_folder  # start-up cost: after --help
+    from frictiongym.agents.learned.convert import convert_folder  # start-up cost: after --help
 
     root = Path.cwd()
     for src in args.src:

@@ -1,12 +1,13 @@
-"""Export a controller as an artefact a drive-side runtime steps (agents/runtime.py): a built-in controller
-or residual base by name, or a saved model's folder, for a scenario (a model's own by default).
+"""Export a controller as an artefact a drive-side runtime steps (agents/deploy/runtime.py): a built-in
+controller or residual base by name, or a saved model's folder, for a scenario (a model's own by default).
 
     frictiongym export agents/models/generalist/GenSAC-kang-ff-kang_random-s0 --out out/export/kang
     frictiongym export PID+FF --scenario m220_reversal_tracking --out out/export/pidff
 
 The folder holds runtime.yaml (the scenario, its sampling, scaling and preview, the controller's designed
 parameters, SHA-256 of every file), a saved model's manifest and weights (no pickle) and its network as
-ONNX. Load it with frictiongym.agents.runtime.Runtime.load(DIR) and call step(readings, reference, preview).
+ONNX. Load it with frictiongym.agents.deploy.runtime.Runtime.load(DIR) and call step(readings, reference,
+preview).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, required=True, help="the artefact's folder (created)")
     args = ap.parse_args(argv)
     try:
-        from frictiongym.agents.runtime import export  # onnx (the deploy extra) for a learned controller
+        from frictiongym.agents.deploy.runtime import export  # onnx (the deploy extra) if learned
 
         print(export(args.source, args.out, args.scenario))
     except ModuleNotFoundError as e:

@@ -65,8 +65,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("out/leaderboard"), help="the run's folder")
     args = ap.parse_args(argv)
     # start-up cost: --help imports none of these (MuJoCo, the controllers, the engine)
-    from frictiongym.agents import leaderboard
-    from frictiongym.agents.engine import one_line_errors, run_interruptibly
+    from frictiongym.agents.evaluation import leaderboard
+    from frictiongym.agents.evaluation.engine import one_line_errors, run_interruptibly
     from frictiongym.agents.registry import LEADERBOARD_GROUPS, committed_models
     from frictiongym.envs.suites import Episode
 

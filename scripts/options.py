@@ -63,6 +63,6 @@ def backend_of(args: Any, ap: argparse.ArgumentParser) -> Any:
         ap.error("--address goes with --backend ray")
     if args.backend != "ray":
         return None
-    from frictiongym.agents.engine import Ray
+    from frictiongym.agents.evaluation.engine import Ray
 
     return Ray(args.address)

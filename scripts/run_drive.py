@@ -1,5 +1,5 @@
 """Run an exported controller (frictiongym export) on a drive over the drive protocol, with the safety
-supervisor between them (agents/drive_loop.py), and log every sample in the drive-log schema.
+supervisor between them (agents/deploy/drive_loop.py), and log every sample in the drive-log schema.
 
     frictiongym run-drive ARTEFACT --drive HOST:PORT [--listen HOST:PORT] [--duration-s S]
                           [--log out/drive/log.csv] [--estop-file PATH] [--limit NAME=VALUE ...]
@@ -7,7 +7,7 @@ supervisor between them (agents/drive_loop.py), and log every sample in the driv
 
 Rehearse on the virtual drive first (frictiongym virtual-drive; docs/deploy.md). Ctrl-C stops cleanly
 (STOP sent, the log written); creating --estop-file stops at once. --limit overrides a supervisor limit
-(agents.drive_loop.Limits: command_limit, rate_limit, position_min, position_max, velocity_limit,
+(agents.deploy.drive_loop.Limits: command_limit, rate_limit, position_min, position_max, velocity_limit,
 divergence_error, divergence_periods, watchdog_s, stop_after_s). Prints the run's figures as JSON; exit
 code 0 when the run completed or was stopped by the operator, 3 when the supervisor stopped it.
 """
@@ -56,8 +56,8 @@ def main(argv: list[str] | None = None) -> int:
         "--backend", choices=("numpy", "onnxruntime"), default="numpy", help="how a network is evaluated"
     )
     args = ap.parse_args(argv)
-    from frictiongym.agents.drive_loop import Limits, run_drive  # the controllers: after --help
-    from frictiongym.agents.runtime import Runtime  # the controllers: after --help
+    from frictiongym.agents.deploy.drive_loop import Limits, run_drive  # the controllers: after --help
+    from frictiongym.agents.deploy.runtime import Runtime  # the controllers: after --help
 
     known = set(Limits.__dataclass_fields__)
     if bad := [n for n, _ in args.limit if n not in known]:

@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     # start-up cost: --help imports none of these (MuJoCo, the controllers, the engine)
     from frictiongym.agents import sim2real
-    from frictiongym.agents.engine import one_line_errors, run_interruptibly
+    from frictiongym.agents.evaluation.engine import one_line_errors, run_interruptibly
     from frictiongym.agents.registry import LEADERBOARD_GROUPS, committed_models
 
     ray = backend_of(args, ap)

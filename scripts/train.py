@@ -47,7 +47,10 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.workers < 1 or any(s < 0 for s in args.seed) or (args.steps is not None and args.steps < 1):
         ap.error("--workers and --steps must be >= 1 and seeds >= 0")
-    from frictiongym.agents.engine import disk_error, run_interruptibly  # start-up cost: after --help
+    from frictiongym.agents.evaluation.engine import (  # start-up cost: after --help
+        disk_error,
+        run_interruptibly,
+    )
 
     try:
         from frictiongym.agents.training import (  # the rl extra: a missing one is named, after --help
@@ -114,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
 def sweep(args: argparse.Namespace) -> int:
     """Run a sweep on Ray Tune and write DIR/<sweep>.csv (one row per trial)."""
     try:
-        from frictiongym.agents.sweeps import METRIC, load_sweep, run_sweep  # the distributed extra
+        from frictiongym.agents.training.sweeps import METRIC, load_sweep, run_sweep  # the distributed extra
     except ModuleNotFoundError as e:
         print(missing_extra(e, "distributed", "frictiongym train --sweep"), file=sys.stderr)
         return 2

@@ -6,7 +6,7 @@
 Searches the family's knobs (configs/controllers.yaml, its section) with Optuna's seeded TPE sampler, the
 document's design as the first trial, on the first EPISODES validation episodes of each of the plant's
 validation scenarios the family applies to; the objective is the rule that selects learned models
-(agents/tuning.py). Stops at the budget or the trial cap, whichever comes first, and merges the best
+(agents/tuning/search.py). Stops at the budget or the trial cap, whichever comes first, and merges the best
 values with their manifest into OUT (default: the repository's configs/tuned.yaml, which the leaderboard
 reads: the family's `[tuned]` twin). `test` and `generalisation` are never used.
 """
@@ -33,8 +33,8 @@ def main(argv: list[str] | None = None) -> int:
     for name in ("budget_min", "trials", "episodes", "workers"):
         if not getattr(args, name) > 0:
             ap.error(f"--{name.replace('_', '-')} must be positive, got {getattr(args, name)}")
-    from frictiongym.agents.engine import one_line_errors  # start-up cost: after --help
-    from frictiongym.agents.tuned import tuned_path
+    from frictiongym.agents.evaluation.engine import one_line_errors  # start-up cost: after --help
+    from frictiongym.agents.tuning.tuned import tuned_path
 
     out = args.out or tuned_path()
     return one_line_errors(lambda: run(args, out), out)
@@ -42,7 +42,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def run(args: argparse.Namespace, out: Path) -> int:
     """Tune and write (main's checked options)."""
-    from frictiongym.agents.tuning import tune, write_tuned
+    from frictiongym.agents.tuning.search import tune, write_tuned
 
     entry = tune(
         args.family, args.plant, args.budget_min * 60, args.trials, args.seed, args.episodes, args.workers

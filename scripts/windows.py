@@ -34,7 +34,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-randomize", action="store_true", help="the nominal plant in every episode")
     ap.add_argument("--out", type=Path, default=Path("out/windows"), help="the run's folder")
     args = ap.parse_args(argv)
-    from frictiongym.agents.engine import one_line_errors  # start-up cost: --help imports no engine
+    from frictiongym.agents.evaluation.engine import one_line_errors  # --help imports no engine
     from frictiongym.envs.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
@@ -49,8 +49,8 @@ def run(args: argparse.Namespace, scenario: Scenario) -> int:
     from tqdm import tqdm
 
     from frictiongym.agents import registry
-    from frictiongym.agents.evaluate import EnvCache
-    from frictiongym.agents.windows import FIELDS, controller_windows, plot_windows
+    from frictiongym.agents.evaluation.evaluate import EnvCache
+    from frictiongym.agents.evaluation.windows import FIELDS, controller_windows, plot_windows
     from frictiongym.envs.records import atomic_text, csv_text
     from frictiongym.envs.suites import Episode
 

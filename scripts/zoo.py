@@ -24,10 +24,10 @@ ZOO_COMMANDS = ("train", "enjoy", "record_video")  # rl_zoo3's own commands, run
 
 
 def _zoo_module() -> ModuleType | None:
-    """frictiongym.agents.zoo (stable-baselines3, rl-zoo: the rl and zoo extras), or None after one line
-    naming the missing extra and its install command."""
+    """frictiongym.agents.training.zoo (stable-baselines3, rl-zoo: the rl and zoo extras), or None after one
+    line naming the missing extra and its install command."""
     try:
-        from frictiongym.agents import zoo  # the rl and zoo extras: a missing one is named, after --help
+        from frictiongym.agents.training import zoo  # the rl and zoo extras: a missing one is named
     except ModuleNotFoundError as e:
         print(missing_extra(e, "rl,zoo", "frictiongym zoo"), file=sys.stderr)
         return None

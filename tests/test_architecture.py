@@ -48,9 +48,10 @@ def _modules() -> dict[str, tuple[Path, bool]]:
 MODULES = _modules()
 
 
-def _imports(name: str) -> list[tuple[str, bool, int, str]]:
+def _imports(name: str, typing: bool = False) -> list[tuple[str, bool, int, str]]:
     """(imported project module, inside a function, line, source line) for each import in module `name`;
-    `from pkg import x` is an import of pkg.x where that is a module, else of pkg."""
+    `from pkg import x` is an import of pkg.x where that is a module, else of pkg. `typing`: the imports
+    under `if TYPE_CHECKING:` too."""
     path, ispkg = MODULES[name]
     source = path.read_text()
     lines = source.splitlines()
@@ -65,7 +66,8 @@ def _imports(name: str) -> list[tuple[str, bool, int, str]]:
 
     def visit(node: ast.AST, local: bool) -> None:
         for child in ast.iter_child_nodes(node):
-            if isinstance(child, ast.If) and getattr(child.test, "id", None) == "TYPE_CHECKING":
+            type_only = isinstance(child, ast.If) and getattr(child.test, "id", None) == "TYPE_CHECKING"
+            if type_only and not typing:
                 continue
             inner = local or isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef)
             if isinstance(child, ast.Import):
@@ -90,6 +92,10 @@ def test_the_walk_finds_every_room():
         "frictiongym.agents.lab.radau",
         "frictiongym.agents.reproduce.kang1998",
         "frictiongym.agents.classical.pid",
+        "frictiongym.agents.evaluation.leaderboard",
+        "frictiongym.agents.learned.folder",
+        "frictiongym.agents.deploy.runtime",
+        "frictiongym.agents.tuning.search",
     ):
         assert name in MODULES
     assert len(MODULES) > 60
@@ -117,6 +123,29 @@ def test_no_import_circle_anywhere():
         graph.prepare()
     except graphlib.CycleError as e:
         pytest.fail(f"import circle: {' -> '.join(e.args[1])}")
+
+
+def test_no_circle_among_the_rooms_type_only_imports_included():
+    """Within the rooms by purpose (evaluation: the leaderboard's board, report, page and leaderboard among
+    them; learned; deploy; tuning), the imports a type checker follows form no circle either: a room reads
+    one way."""
+    for room in (f"frictiongym.agents.{r}" for r in ("evaluation", "learned", "deploy", "tuning")):
+        graph = graphlib.TopologicalSorter()
+        for name in (n for n in MODULES if n.startswith(room + ".")):
+            graph.add(name)
+            for target, _, _, _ in _imports(name, typing=True):
+                if target.startswith(room + ".") and target != name:
+                    graph.add(name, target)
+        try:
+            graph.prepare()
+        except graphlib.CycleError as e:
+            pytest.fail(f"import circle in {room}: {' -> '.join(e.args[1])}")
+
+
+def test_the_code_and_the_committed_models_have_different_names():
+    """agents/models/ holds committed model folders (data); the code that reads them is agents/learned/."""
+    assert not any(n.startswith("frictiongym.agents.models") for n in MODULES)
+    assert "frictiongym.agents.learned.folder" in MODULES
 
 
 def test_a_function_local_import_states_its_reason():

@@ -9,7 +9,7 @@ import pytest
 from frictiongym.agents import registry
 from frictiongym.agents.base import EpisodeContext
 from frictiongym.agents.classical import PD, PID, RDFC, Southward, design_pid
-from frictiongym.agents.evaluate import evaluate, run_episode
+from frictiongym.agents.evaluation.evaluate import evaluate, run_episode
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.plants.params import EpisodeParams

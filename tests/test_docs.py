@@ -47,7 +47,7 @@ def test_the_site_builds_without_warnings_and_its_links_resolve(tmp_path):
     api = site / "generated" / "api"
     assert 'id="frictiongym.agents.registry.make"' in (api / "frictiongym.agents.registry.html").read_text()
     assert 'id="frictiongym.envs.servo_env.ServoEnv"' in (api / "frictiongym.envs.servo_env.html").read_text()
-    assert 'href="frictiongym.agents.evaluate.html"' in (api / "index.html").read_text()
+    assert 'href="frictiongym.agents.evaluation.evaluate.html"' in (api / "index.html").read_text()
     # a docstring's bullet list is a list, not a literal block: frictiongym.envs's two kinds of id
     envs = (api / "frictiongym.envs.html").read_text()
     assert re.search(r"<ul[^>]*>\s*<li><p>one per plant", envs), "the docstring's list is not a list"

@@ -1,5 +1,5 @@
-"""The real-time loop (agents/drive_loop.py) on the virtual drive (envs/virtual_drive.py), over the drive
-protocol on loopback: a run completes and its log is a drive log the identification reads; the
+"""The real-time loop (agents/deploy/drive_loop.py) on the virtual drive (envs/virtual_drive.py), over the
+drive protocol on loopback: a run completes and its log is a drive log the identification reads; the
 supervisor catches each fault (lost and late datagrams, a frozen drive, a drive that runs away, an
 emergency stop, Ctrl-C) and logs it; the protocol refuses malformed datagrams."""
 
@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from frictiongym.agents.drive_loop import SUPERVISOR_CODES, Limits, Supervisor, run_drive
+from frictiongym.agents.deploy.drive_loop import SUPERVISOR_CODES, Limits, Supervisor, run_drive
+from frictiongym.agents.deploy.runtime import Runtime, export
 from frictiongym.agents.lab.drive_log import read_drive_log
-from frictiongym.agents.runtime import Runtime, export
 from frictiongym.envs import drive_protocol as proto
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.virtual_drive import Faults, serve

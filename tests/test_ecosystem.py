@@ -187,7 +187,7 @@ def test_infos_compare_equal_to_themselves_at_episode_ends():
 
 def test_undefined_metrics_stay_nan_in_results():
     """The evaluation loop keeps every metric (n/a in the CSV), while info leaves the undefined out."""
-    from frictiongym.agents.evaluate import run_episode
+    from frictiongym.agents.evaluation.evaluate import run_episode
     from frictiongym.agents.registry import make
     from frictiongym.envs.suites import Episode
 

@@ -11,9 +11,10 @@ from importlib.metadata import EntryPoint
 
 import pytest
 
-from frictiongym.agents import engine, registry
+from frictiongym.agents import registry
 from frictiongym.agents.base import Zero
-from frictiongym.agents.model_convert import convert_folder
+from frictiongym.agents.evaluation import engine
+from frictiongym.agents.learned.convert import convert_folder
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
 
@@ -138,7 +139,7 @@ def test_entry_point_controllers_are_registered(monkeypatch):
 def test_saved_model_is_an_entry_and_a_mismatched_scenario_is_skipped_with_its_reason(tmp_path):
     from stable_baselines3 import PPO
 
-    from frictiongym.agents import leaderboard
+    from frictiongym.agents.evaluation import leaderboard
     from frictiongym.envs.servo_env import ServoEnv
 
     sb3 = tmp_path / "sb3" / "ppo_kang"

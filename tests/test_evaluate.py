@@ -1,4 +1,5 @@
-"""The one evaluation loop (agents/evaluate.py): episodes stepped together give each episode's own result."""
+"""The one evaluation loop (agents/evaluation/evaluate.py): episodes stepped together give each episode's own
+result."""
 
 from __future__ import annotations
 
@@ -8,8 +9,14 @@ import numpy as np
 import pytest
 
 from frictiongym.agents import registry
-from frictiongym.agents.engine import Job, run_chunk
-from frictiongym.agents.evaluate import EnvCache, EpisodeResult, evaluate, run_episode, run_episodes
+from frictiongym.agents.evaluation.engine import Job, run_chunk
+from frictiongym.agents.evaluation.evaluate import (
+    EnvCache,
+    EpisodeResult,
+    evaluate,
+    run_episode,
+    run_episodes,
+)
 from frictiongym.envs.suites import Episode
 
 HEADLINE = ("agents/models/specialist",)

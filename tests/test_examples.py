@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 from conftest import load_script
 
-from frictiongym.agents import leaderboard, registry
+from frictiongym.agents import registry
 from frictiongym.agents.classical import PID
+from frictiongym.agents.evaluation import leaderboard
 from frictiongym.envs.scenario import TRACKING, load_scenario
 from frictiongym.envs.suites import Episode, load_suite
 

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from frictiongym.agents import leaderboard, registry, stats
+from frictiongym.agents import registry
+from frictiongym.agents.evaluation import leaderboard, stats
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode, load_suite
 

@@ -1,4 +1,4 @@
-"""The leaderboard's web page (index.html, agents/leaderboard_page.py): self-contained (no network), every
+"""The leaderboard's web page (index.html, agents/evaluation/page.py): self-contained (no network), every
 table sortable, the reference rows marked; and in a real browser (Debian's chromium, headless, driven by
 Selenium): it loads without console errors, a table sorts on a click, every image loads, a screenshot is
 written as an artefact. The browser test needs chromium and chromedriver (.ci/run installs them and sets
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from frictiongym.agents import leaderboard
+from frictiongym.agents.evaluation import leaderboard
 from frictiongym.envs.suites import Episode
 
 EPISODES = [Episode(sc, s, True) for sc in ("kang_ramp", "m220_regulation") for s in (5000, 5001)]

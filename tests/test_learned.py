@@ -1,5 +1,5 @@
-"""Learned controllers (agents/learned.py): the model input, the algorithm classes, LearnedPolicy's prediction
-path against model.predict, and actions on many episodes' rows at once."""
+"""Learned controllers (agents/learned/policy.py): the model input, the algorithm classes, LearnedPolicy's
+prediction path against model.predict, and actions on many episodes' rows at once."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ pytest.importorskip("sb3_contrib")
 from conftest import SCENARIO, write_config
 
 from frictiongym.agents import registry
-from frictiongym.agents.evaluate import EnvCache
-from frictiongym.agents.learned import (
+from frictiongym.agents.evaluation.evaluate import EnvCache
+from frictiongym.agents.learned.policy import (
     LayerNetwork,
     LearnedPolicy,
     PolicyInputs,
@@ -38,7 +38,7 @@ def test_differences_are_the_tracking_error_and_the_reference_change_over_the_pr
     """PolicyInputs.differences appends (y - r)/s of the tracked sensor and (r(t_{k+P}) - r(t_k))/s, read
     from the observation's own entries (float32 differences of the scaled readings); on a regulation
     scenario with its preview filled in (preview_fill) the reference does not change: exactly 0."""
-    from frictiongym.agents.learned import difference_indices, policy_observation, with_preview
+    from frictiongym.agents.learned.policy import difference_indices, policy_observation, with_preview
     from frictiongym.envs.servo_env import ServoEnv, decode_observation
 
     env = ServoEnv("kang_random")
@@ -166,7 +166,7 @@ def test_tree_sum_is_a_fixed_pairwise_order():
     within float64 rounding of math.fsum otherwise, and a row's sum does not depend on the other rows."""
     import math
 
-    from frictiongym.agents.learned import tree_sum
+    from frictiongym.agents.learned.policy import tree_sum
 
     rng = np.random.default_rng(1)
     ints = rng.integers(-1000, 1000, (3, 13, 4)).astype(np.float64)
@@ -181,7 +181,7 @@ def test_tree_sum_is_a_fixed_pairwise_order():
 
 
 def test_algorithm_class_names_the_missing_rl_extra(monkeypatch):
-    from frictiongym.agents import learned
+    from frictiongym.agents.learned import policy as learned
 
     assert learned.algorithm_class("TQC").__name__ == "TQC"
     with pytest.raises(ValueError, match=r"'Nope' is not a stable-baselines3 or sb3-contrib class$"):
@@ -204,7 +204,7 @@ def test_a_preview_model_on_a_regulation_scenario_is_given_its_constant_referenc
     the one on the same scenario with the env's own 5-step preview; the residual acts (not PID's rows)."""
     import math
 
-    from frictiongym.agents.evaluate import run_episodes
+    from frictiongym.agents.evaluation.evaluate import run_episodes
     from frictiongym.envs.scenario import load_scenario
     from frictiongym.envs.suites import Episode
 
@@ -239,7 +239,7 @@ def test_a_differences_model_sees_in_evaluation_what_its_training_env_gave(tmp_p
     import yaml
     from conftest import HYPER
 
-    from frictiongym.agents.evaluate import run_episodes
+    from frictiongym.agents.evaluation.evaluate import run_episodes
     from frictiongym.envs.suites import Episode
 
     cfg_path = tmp_path / "diff.yaml"

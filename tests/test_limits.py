@@ -6,8 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from frictiongym.agents import leaderboard, registry
-from frictiongym.agents.evaluate import EnvCache, EpisodeResult, run_episode
+from frictiongym.agents import registry
+from frictiongym.agents.evaluation import leaderboard
+from frictiongym.agents.evaluation.evaluate import EnvCache, EpisodeResult, run_episode
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.metrics import METRIC_NAMES
 from frictiongym.envs.scenario import load_scenario

@@ -1,12 +1,12 @@
-"""A model folder's manifest (agents/manifest.py): what training writes is what the registry reads."""
+"""A model folder's manifest (agents/learned/manifest.py): what training writes is what the registry reads."""
 
 from pathlib import Path
 
 import pytest
 import yaml
 
-from frictiongym.agents.learned import PolicyInputs
-from frictiongym.agents.manifest import MANIFEST, Manifest
+from frictiongym.agents.learned.manifest import MANIFEST, Manifest
+from frictiongym.agents.learned.policy import PolicyInputs
 from frictiongym.envs.config import ConfigError
 
 MODELS = Path(__file__).parents[1] / "agents" / "models"

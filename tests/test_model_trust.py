@@ -1,4 +1,4 @@
-"""A model folder cannot run code (agents/model_folder.py): every crafted folder, manifest or YAML fails
+"""A model folder cannot run code (agents/learned/folder.py): every crafted folder, manifest or YAML fails
 closed with a one-line error naming the file and what is wrong, and leaves no trace of its payload; the
 one door for a pickle-bearing SB3 zip is convert-model with --trust-pickle."""
 
@@ -15,11 +15,12 @@ import pytest
 import yaml
 from conftest import load_script, write_config
 
-from frictiongym.agents import leaderboard, registry
-from frictiongym.agents.learned import LearnedPolicy
-from frictiongym.agents.manifest import MANIFEST, Manifest
-from frictiongym.agents.model_convert import convert_folder
-from frictiongym.agents.model_folder import POLICY, UntrustedModel, read_policy
+from frictiongym.agents import registry
+from frictiongym.agents.evaluation import leaderboard
+from frictiongym.agents.learned.convert import convert_folder
+from frictiongym.agents.learned.folder import POLICY, UntrustedModel, read_policy
+from frictiongym.agents.learned.manifest import MANIFEST, Manifest
+from frictiongym.agents.learned.policy import LearnedPolicy
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.suites import Episode
 
@@ -288,7 +289,7 @@ def test_convert_model_needs_trust_and_keeps_every_action(tmp_path, sb3_folder, 
 def test_zoo_config_is_read_safely(tmp_path):
     """rl-zoo's config.yml (an OrderedDict written as a Python object) reads as a mapping; any other tag
     is refused before it is constructed."""
-    from frictiongym.agents.zoo import zoo_config
+    from frictiongym.agents.training.zoo import zoo_config
 
     params = tmp_path / "run" / "KangRobot-v0"
     params.mkdir(parents=True)

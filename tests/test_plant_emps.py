@@ -11,7 +11,7 @@ import pytest
 import frictiongym.envs  # noqa: F401  (registers the ids)
 from frictiongym.agents.base import EpisodeContext
 from frictiongym.agents.classical import LabPD
-from frictiongym.agents.evaluate import run_episode
+from frictiongym.agents.evaluation.evaluate import run_episode
 from frictiongym.agents.lab import closed_loop, idim
 from frictiongym.agents.lab.drive_log import DriveLog, emps_log
 from frictiongym.agents.registry import make

@@ -18,7 +18,7 @@ pytestmark = pytest.mark.slow  # starts a local Ray
 ray = pytest.importorskip("ray")
 psutil = pytest.importorskip("psutil")
 
-from frictiongym.agents import engine  # noqa: E402
+from frictiongym.agents.evaluation import engine  # noqa: E402
 from frictiongym.envs.suites import Episode  # noqa: E402
 
 ROOT = Path(__file__).parents[1]

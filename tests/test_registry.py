@@ -2,7 +2,7 @@
 alone, as the loaded model would judge itself."""
 
 from frictiongym.agents import registry
-from frictiongym.agents.manifest import Manifest
+from frictiongym.agents.learned.manifest import Manifest
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import load_suite
 
@@ -32,7 +32,7 @@ def test_every_committed_model_is_numpy_layers_within_float32_rounding_of_torch_
     import numpy as np
     import torch
 
-    from frictiongym.agents.learned import LayerNetwork
+    from frictiongym.agents.learned.policy import LayerNetwork
 
     folders = registry.committed_models(*registry.LEADERBOARD_GROUPS, "sim2real")
     models = tuple(str(f) for f in folders)
@@ -82,7 +82,7 @@ def test_a_residual_base_is_made_by_name_but_never_a_baseline_or_a_default_entry
     no leaderboard counts it as classical; asked for by name it runs like any controller."""
     import pytest
 
-    from frictiongym.agents.leaderboard import classical
+    from frictiongym.agents.evaluation.leaderboard import classical
 
     assert set(registry.BASES) == {"SpeedScheduled", "TaskScheduled", "SF+relay/residual-base"}
     used = {

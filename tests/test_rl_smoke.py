@@ -54,8 +54,8 @@ def test_short_sac_run_beats_random_and_zero_policies():
 
 
 def test_a_learned_policy_runs_through_the_same_evaluation_loop():
-    from frictiongym.agents.evaluate import evaluate
-    from frictiongym.agents.learned import LearnedPolicy
+    from frictiongym.agents.evaluation.evaluate import evaluate
+    from frictiongym.agents.learned.policy import LearnedPolicy
     from frictiongym.envs.suites import Episode
 
     env = gym.make("frictiongym/KangRobot-v0", episode_s=0.4)

@@ -1,4 +1,4 @@
-"""A controller outside the env (agents/runtime.py): an exported artefact's runtime, fed the readings,
+"""A controller outside the env (agents/deploy/runtime.py): an exported artefact's runtime, fed the readings,
 reference and preview of an env-driven run, gives that run's commands; every file is checked before use.
 
 The runtime forms the observation with the env's arithmetic from the sensors' raw readings (recorded
@@ -16,8 +16,8 @@ import yaml
 
 from frictiongym.agents import registry
 from frictiongym.agents.base import EpisodeContext
-from frictiongym.agents.evaluate import EnvCache
-from frictiongym.agents.runtime import RUNTIME, Runtime, export
+from frictiongym.agents.deploy.runtime import RUNTIME, Runtime, export
+from frictiongym.agents.evaluation.evaluate import EnvCache
 from frictiongym.agents.settings import knowledge_defaults
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.suites import Episode, load_suite

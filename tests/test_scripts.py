@@ -199,7 +199,7 @@ def test_a_full_disk_ends_in_one_line_and_keeps_whole_rows(tmp_path, capsys, mon
     episodes.csv holds whole rows only (a rerun resumes from them)."""
     import errno
 
-    from frictiongym.agents import engine
+    from frictiongym.agents.evaluation import engine
 
     real, calls = engine.os.write, []
 

@@ -1,13 +1,14 @@
-"""agents/stats.py: intervals, the IQM, paired comparisons, performance profiles and the scores (the
-normalised score, g, and their attachment to a scenario's episodes), each on values with a known answer."""
+"""agents/evaluation/stats.py: intervals, the IQM, paired comparisons, performance profiles and the
+scores (the normalised score, g, and their attachment to a scenario's episodes), each on values with a
+known answer."""
 
 import math
 
 import numpy as np
 import pytest
 
-from frictiongym.agents import stats
-from frictiongym.agents.evaluate import EpisodeResult
+from frictiongym.agents.evaluation import stats
+from frictiongym.agents.evaluation.evaluate import EpisodeResult
 
 
 def test_bootstrap_interval_brackets_the_mean_and_is_reproducible():

@@ -8,7 +8,7 @@ import pytest
 from conftest import lockstep
 
 from frictiongym.agents.classical import Southward
-from frictiongym.agents.evaluate import run_episode
+from frictiongym.agents.evaluation.evaluate import run_episode
 from frictiongym.agents.lab import radau
 from frictiongym.agents.reproduce import friction_phenomena as phen
 from frictiongym.agents.reproduce.kang1998 import EPISODE
@@ -148,9 +148,9 @@ def test_an_episode_pinning_a_structure_runs_on_it_and_designs_on_the_scenarios_
     """The sim-to-real structural axis: Episode(..., (("friction_model", m),)) builds the env with that
     structure (the same episode as the scenario override gives, bit for bit) while the controller is
     designed on the scenario's own plant; the pin survives the engine's CSV round trip."""
-    from frictiongym.agents import engine
     from frictiongym.agents.classical import PD
-    from frictiongym.agents.evaluate import EnvCache
+    from frictiongym.agents.evaluation import engine
+    from frictiongym.agents.evaluation.evaluate import EnvCache
     from frictiongym.envs.suites import Episode
 
     e = Episode("kang_regulation", 5, False, (("friction_model", "coulomb"),))

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from frictiongym.agents import leaderboard, registry
+from frictiongym.agents import registry
 from frictiongym.agents.base import EpisodeContext
 from frictiongym.agents.classical import (
     AdaptiveCoulomb,
@@ -20,9 +20,10 @@ from frictiongym.agents.classical import (
 from frictiongym.agents.classical.design import rigid_position_plant
 from frictiongym.agents.classical.iterative import period_steps
 from frictiongym.agents.classical.model_feedforward import ModelFeedForward
-from frictiongym.agents.evaluate import EpisodeResult, run_episode
-from frictiongym.agents.tuned import Tuned
-from frictiongym.agents.tuning import tune
+from frictiongym.agents.evaluation import leaderboard
+from frictiongym.agents.evaluation.evaluate import EpisodeResult, run_episode
+from frictiongym.agents.tuning.search import tune
+from frictiongym.agents.tuning.tuned import Tuned
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.metrics import METRIC_NAMES
 from frictiongym.envs.plants.identified import drive_friction

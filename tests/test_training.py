@@ -25,11 +25,11 @@ from frictiongym.agents import registry
 from frictiongym.agents.base import EpisodeContext
 from frictiongym.agents.classical import SpeedScheduled, SpeedScheduledSettings
 from frictiongym.agents.classical.scheduled import GATES
-from frictiongym.agents.engine import plan
-from frictiongym.agents.evaluate import EnvCache, run_episode
-from frictiongym.agents.learned import LearnedPolicy, residual_action
-from frictiongym.agents.manifest import MANIFEST
-from frictiongym.agents.model_folder import POLICY, UntrustedModel
+from frictiongym.agents.evaluation.engine import plan
+from frictiongym.agents.evaluation.evaluate import EnvCache, run_episode
+from frictiongym.agents.learned.folder import POLICY, UntrustedModel
+from frictiongym.agents.learned.manifest import MANIFEST
+from frictiongym.agents.learned.policy import LearnedPolicy, residual_action
 from frictiongym.agents.settings import knowledge_defaults
 from frictiongym.agents.training import (
     RECORDS,
@@ -802,8 +802,8 @@ def test_a_run_stopped_at_any_write_of_a_checkpoint_resumes_from_one_complete_se
     continues from the set LATEST names: no step evaluated twice or missing, the rows before that set
     as the uninterrupted run's, and the model folder's file the one its manifest's SHA-256 names."""
     import frictiongym.envs.records as records
-    from frictiongym.agents.manifest import Manifest
-    from frictiongym.agents.model_folder import read_policy
+    from frictiongym.agents.learned.folder import read_policy
+    from frictiongym.agents.learned.manifest import Manifest
 
     real = records.os.replace
     targets: list[str] = []

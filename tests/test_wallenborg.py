@@ -11,7 +11,7 @@ from frictiongym.agents.classical.state_feedback import (
     regulator_stability_boundary,
     state_feedback_design,
 )
-from frictiongym.agents.evaluate import run_episode
+from frictiongym.agents.evaluation.evaluate import run_episode
 from frictiongym.agents.reproduce.report import published
 from frictiongym.agents.reproduce.wallenborg1987 import DESIGNS as WALLENBORG_DESIGNS
 from frictiongym.agents.reproduce.wallenborg1987 import window_cycle

@@ -1,4 +1,5 @@
-"""Window metrics (agents/windows.py, scripts/windows.py): where along an episode a controller breaks."""
+"""Window metrics (agents/evaluation/windows.py, scripts/windows.py): where along an episode a controller
+breaks."""
 
 import csv
 
@@ -6,8 +7,8 @@ import numpy as np
 import pytest
 
 from frictiongym.agents import registry
-from frictiongym.agents.evaluate import run_episode
-from frictiongym.agents.windows import controller_windows, window_metrics
+from frictiongym.agents.evaluation.evaluate import run_episode
+from frictiongym.agents.evaluation.windows import controller_windows, window_metrics
 from frictiongym.envs.suites import Episode
 from frictiongym.scripts import windows as windows_script
 

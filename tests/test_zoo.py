@@ -16,7 +16,7 @@ import yaml
 
 import frictiongym.envs
 from frictiongym.agents.registry import make
-from frictiongym.agents.zoo import Residual, zoo_env_kwargs, zoo_policy, zoo_run
+from frictiongym.agents.training.zoo import Residual, zoo_env_kwargs, zoo_policy, zoo_run
 from frictiongym.envs.config import ConfigError, configs_dir
 
 # rl_zoo3 is run in subprocesses only: importing it patches Gymnasium's TimeLimit for the whole process
@@ -36,8 +36,9 @@ def test_zoo_file_has_an_entry_per_plant_on_a_per_scenario_id():
         assert env_id in frictiongym.envs.SCENARIO_IDS and "scenario" not in hyper["env_kwargs"]
         env = gym.make(env_id, **hyper["env_kwargs"])
         [wrapper] = hyper["env_wrapper"]
-        Residual(env, **wrapper["frictiongym.agents.zoo.Residual"])  # the base applies, needs no hardware
-        Residual(gym.make(env_id), **wrapper["frictiongym.agents.zoo.Residual"])  # the zoo's eval env
+        settings = wrapper["frictiongym.agents.training.zoo.Residual"]
+        Residual(env, **settings)  # the base applies, needs no hardware
+        Residual(gym.make(env_id), **settings)  # the zoo's eval env
 
 
 def test_residual_wrapper_with_a_zero_residual_is_its_base_bit_for_bit():

@@ -64,7 +64,7 @@ class AdaptiveCoulomb(PIDModelFF):
     """PID+MFF with the friction feed-forward scaled by the adapted Coulomb level (module docstring)."""
 
     name: ClassVar[str] = "AdaptiveFF"
-    tunes: ClassVar[tuple[str, type]] = ("adaptive", AdaptiveSettings)  # agents/tuning.py
+    tunes: ClassVar[tuple[str, type]] = ("adaptive", AdaptiveSettings)  # agents/tuning/search.py
 
     def __init__(self, adaptive: AdaptiveSettings | None = None, **kw: Any):
         super().__init__(**kw)

@@ -75,7 +75,7 @@ class DisturbanceObserver(PID):
     """PD (position) or P (speed) loop plus the disturbance observer's cancellation (module docstring)."""
 
     name: ClassVar[str] = "DOB"
-    tunes: ClassVar[tuple[str, type]] = ("observer", ObserverSettings)  # agents/tuning.py
+    tunes: ClassVar[tuple[str, type]] = ("observer", ObserverSettings)  # agents/tuning/search.py
     integral: ClassVar[bool] = False
     with_feedforward: ClassVar[bool] = False
 

@@ -81,7 +81,7 @@ class IterativeLearning(PIDModelFF):
     """PID+MFF plus the learned correction of the previous periods (module docstring)."""
 
     name: ClassVar[str] = "ILC"
-    tunes: ClassVar[tuple[str, type]] = ("learning", LearningSettings)  # agents/tuning.py
+    tunes: ClassVar[tuple[str, type]] = ("learning", LearningSettings)  # agents/tuning/search.py
 
     def __init__(self, learning: LearningSettings | None = None, **kw: Any):
         super().__init__(**kw)

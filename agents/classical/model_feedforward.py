@@ -210,7 +210,7 @@ class PIDModelFF(PID):
     the driven joint and friction there."""
 
     name: ClassVar[str] = "PID+MFF"
-    tunes: ClassVar[tuple[str, type]] = ("ff", FeedForwardSettings)  # agents/tuning.py
+    tunes: ClassVar[tuple[str, type]] = ("ff", FeedForwardSettings)  # agents/tuning/search.py
     tasks: ClassVar[tuple[str, ...]] = (TRACKING,)
 
     def __init__(self, ff: FeedForwardSettings | None = None, **overrides: Any):
@@ -284,7 +284,7 @@ class CascadeModelFF(PhysicalController):
     K_p = position_ratio·ω_v; v̂ the encoder difference, filtered if velocity_filter_s > 0."""
 
     name: ClassVar[str] = "Cascade+MFF"
-    tunes: ClassVar[tuple[str, type]] = ("settings", CascadeSettings)  # agents/tuning.py
+    tunes: ClassVar[tuple[str, type]] = ("settings", CascadeSettings)  # agents/tuning/search.py
     sensor_kinds: ClassVar[tuple[str, ...]] = ("encoder",)
     tasks: ClassVar[tuple[str, ...]] = (TRACKING,)
 

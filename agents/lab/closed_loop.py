@@ -3,12 +3,12 @@ lab's controller, driven by the measured reference (and the validation set's pul
 measured position and force; and the open-loop simulation of the common benchmark protocol (input the
 measured ν, output the position).
 
-The closed loop runs through the suite's one evaluation loop (agents/evaluate.py) on the benchmark's own
-scenarios (the paper suite's emps_tracking_full, emps_pulses_full: the headline scenarios over the whole
-recordings) with the nominal plant, so what is checked against the measurement is what the benchmark
-simulates. Relative errors are those of EMPS eq. (11) as the
-description's Simulation_EMPS script computes them: the measured position filtered and differentiated as
-in §3.1 against the simulated states, the force gτ·ν, all from the 50th sample on.
+The closed loop runs through the suite's one evaluation loop (agents/evaluation/evaluate.py) on the
+benchmark's own scenarios (the paper suite's emps_tracking_full, emps_pulses_full: the headline
+scenarios over the whole recordings) with the nominal plant, so what is checked against the measurement
+is what the benchmark simulates. Relative errors are those of EMPS eq. (11) as the description's
+Simulation_EMPS script computes them: the measured position filtered and differentiated as in §3.1
+against the simulated states, the force gτ·ν, all from the 50th sample on.
 """
 
 from __future__ import annotations
@@ -17,11 +17,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from frictiongym.agents.evaluation.evaluate import run_episode
 from frictiongym.envs.plants import PlantSpec, plant_spec
 from frictiongym.envs.plants.sim import PlantSim
 from frictiongym.envs.suites import Episode
 
-from ..evaluate import run_episode
 from ..registry import make
 from .drive_log import DriveLog, emps_log
 from .idim import PUBLISHED, IdimSettings, central_difference, relative_error, states

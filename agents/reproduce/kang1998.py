@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from frictiongym.agents.evaluation.evaluate import EpisodeResult, run_episode
 from frictiongym.envs import units
 from frictiongym.envs.plants import plant_spec
 from frictiongym.envs.plants.sim import PlantSim
@@ -19,7 +20,6 @@ from frictiongym.envs.suites import Episode
 from frictiongym.envs.units import rad_to_deg
 
 from ..classical import PD, RDFC, Southward
-from ..evaluate import EpisodeResult, run_episode
 from ..figures import save_figure
 from .report import Section, published_node, row
 

@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
+from frictiongym.agents.evaluation.evaluate import EpisodeResult, run_episode
 from frictiongym.envs import metrics
 from frictiongym.envs.plants import flexible_servo, plant_spec
 from frictiongym.envs.plants.flexible_servo import tacho_gains
@@ -26,7 +27,6 @@ from ..classical.state_feedback import (
     regulator_stability_boundary,
     state_feedback_design,
 )
-from ..evaluate import EpisodeResult, run_episode
 from ..figures import save_figure
 from .report import Section, published, row
 

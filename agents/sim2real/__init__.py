@@ -7,10 +7,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+from frictiongym.agents import registry
+from frictiongym.agents.evaluation import engine
 from frictiongym.envs.records import atomic_text, csv_text
 from frictiongym.envs.scenario import load_scenario
 
-from .. import engine, registry
 from ..base import ZERO
 from ..figures import save_figure
 from . import report

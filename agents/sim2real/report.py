@@ -11,11 +11,11 @@ from typing import Any
 
 import numpy as np
 
+from frictiongym.agents.evaluation.report import palette
 from frictiongym.envs.records import pyplot
 
 from .. import registry
 from ..base import ZERO
-from ..leaderboard_report import palette
 from .study import AXES, DEGRADED, DESIGNS, MODEL_ERROR_SEEDS, SEEDS, STRUCTURES
 
 

@@ -25,6 +25,9 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from frictiongym.agents import registry
+from frictiongym.agents.evaluation import stats
+from frictiongym.agents.evaluation.evaluate import EnvCache, EpisodeResult, run_episode
 from frictiongym.agents.lab import experiments as ex
 from frictiongym.agents.lab.fits import identify_simulated
 from frictiongym.envs.config import ConfigError
@@ -34,9 +37,6 @@ from frictiongym.envs.plants.params import EpisodeParams, spec_with
 from frictiongym.envs.sampler import stream
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode, seed_range
-
-from .. import registry, stats
-from ..evaluate import EnvCache, EpisodeResult, run_episode
 
 SEEDS, _LAST = seed_range("sim2real")  # configs/suites.yaml's range: disjoint from every suite and training
 SET_SPAN = (_LAST + 1 - SEEDS) // 3  # seeds per set: one-axis and structure episodes, joint sets, model error

@@ -8,7 +8,7 @@ that override them; every key is checked (unknown keys, types, ranges: errors na
 One run = (config, scenario, seed) and writes a model folder the leaderboard loads (--models):
 
     policy.safetensors            the model selected on the validation suite: its actor's layers, action
-                                  bounds and frozen statistics (agents/model_folder.py: no pickle)
+                                  bounds and frozen statistics (agents/learned/folder.py: no pickle)
     manifest.yaml                 algorithm, network, SHA-256, scenario, base controller, α,
                                   hyper-parameters, seed, steps, wall time, the exact command, package
                                   version, validation score
@@ -21,7 +21,8 @@ effort_rms is at most `max_effort_ratio` times the best classical baseline's on 
 compensator that chatters is not a result); one torch thread per process.
 """
 
-from ..manifest import MANIFEST, MODEL, NORMALIZER, Manifest
+from frictiongym.agents.learned.manifest import MANIFEST, MODEL, NORMALIZER, Manifest
+
 from .config import (
     ALGORITHMS,
     ASYMMETRIC,

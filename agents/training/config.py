@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from frictiongym.agents.learned.policy import PolicyInputs, algorithm_class
 from frictiongym.envs.config import (
     ConfigError,
     Node,
@@ -27,14 +28,10 @@ from frictiongym.envs.plants.spec import RANDOMIZATION_KEYS
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.step import REWARD_WEIGHTS
 
-from ..learned import (
-    PolicyInputs,
-    algorithm_class,
-)
 from ..registry import base_controller
 
 VALIDATION_SUITE = "validation"
-ASYMMETRIC = ("SAC", "TD3", "TQC", "CrossQ")  # the privileged critic (agents/asymmetric.py)
+ASYMMETRIC = ("SAC", "TD3", "TQC", "CrossQ")  # the privileged critic (agents/training/asymmetric.py)
 JAX = ("sbx.SAC", "sbx.TQC", "sbx.CrossQ")  # sbx's JAX learners (the optional sbx extra)
 OFF_POLICY = (*ASYMMETRIC, *JAX)  # replay-buffer learners: update_to_data applies
 ALGORITHMS = (*OFF_POLICY, "PPO", "RecurrentPPO")

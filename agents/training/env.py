@@ -9,14 +9,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from frictiongym.envs.config import (
-    ConfigError,
-)
-from frictiongym.envs.scenario import load_scenario
-
-from ..base import Controller, EpisodeContext
-from ..evaluate import controller_overrides
-from ..learned import (
+from frictiongym.agents.evaluation.evaluate import controller_overrides
+from frictiongym.agents.learned.policy import (
     LearnedNeeds,
     PolicyInputs,
     difference_indices,
@@ -24,6 +18,12 @@ from ..learned import (
     policy_observation,
     residual_action,
 )
+from frictiongym.envs.config import (
+    ConfigError,
+)
+from frictiongym.envs.scenario import load_scenario
+
+from ..base import Controller, EpisodeContext
 from ..registry import base_controller
 from ..settings import knowledge_defaults
 from .config import RunConfig, scenario_overrides
@@ -35,8 +35,8 @@ class ResidualEnv(gym.Wrapper):
     """A scenario's env as a learned compensator sees it: in residual mode the base controller runs in the
     loop (u = clip(u_base + α·a)) and the observation is extended with its action (policy_observation);
     without a base, the env as it is: the single-env form of a training env (agents/training/vec_env.py),
-    for rl-zoo (agents/zoo.py). `smoothness` > 0 (residual mode) subtracts residual_smoothness from the
-    reward."""
+    for rl-zoo (agents/training/zoo.py). `smoothness` > 0 (residual mode) subtracts residual_smoothness from
+    the reward."""
 
     def __init__(
         self,

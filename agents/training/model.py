@@ -8,12 +8,9 @@ from typing import Any
 
 import numpy as np
 
+from frictiongym.agents.learned.policy import algorithm_class, is_jax
 from frictiongym.envs.scenario import load_scenario
 
-from ..learned import (
-    algorithm_class,
-    is_jax,
-)
 from .config import RunConfig, learning_rate, sb3_schedule
 
 
@@ -45,7 +42,7 @@ def build_model(cfg: RunConfig, venv: Any, seed: int, tb: str | None) -> Any:
     if cfg.algorithm in ("PPO", "RecurrentPPO") or hyper.get("use_sde"):
         pk.setdefault("log_std_init", math.log(cfg.initial_std))
     if cfg.inputs.privileged:
-        from ..asymmetric import asymmetric_policy  # builds torch modules at import: only when asked for
+        from .asymmetric import asymmetric_policy  # builds torch modules at import: only when asked for
 
         sc = load_scenario(cfg.scenario)
         policy = asymmetric_policy(cfg.algorithm)

@@ -19,23 +19,21 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any
 
+from frictiongym.agents.evaluation import stats
+from frictiongym.agents.evaluation.engine import init_worker, provenance, stop_workers
+from frictiongym.agents.evaluation.evaluate import EnvCache
+from frictiongym.agents.evaluation.stats import why_not_beats
+from frictiongym.agents.learned.manifest import MANIFEST, MODEL, NORMALIZER, Manifest
+from frictiongym.agents.learned.policy import algorithm_class
 from frictiongym.envs.config import (
     ConfigError,
 )
 from frictiongym.envs.records import atomic_text, atomic_write, command_line, csv_text, pyplot
 from frictiongym.envs.scenario import load_scenario
 
-from .. import stats
 from ..base import ZERO
-from ..engine import init_worker, provenance, stop_workers
-from ..evaluate import EnvCache
 from ..figures import save_figure
-from ..learned import (
-    algorithm_class,
-)
-from ..manifest import MANIFEST, MODEL, NORMALIZER, Manifest
 from ..registry import base_controller
-from ..stats import why_not_beats
 from .config import VALIDATION_SUITE, RunConfig
 from .env import make_training_env
 from .model import build_model

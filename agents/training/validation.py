@@ -16,6 +16,16 @@ from typing import Any
 
 import numpy as np
 
+from frictiongym.agents.evaluation.evaluate import EnvCache, run_episodes
+from frictiongym.agents.learned.folder import sha256_bytes, write_policy
+from frictiongym.agents.learned.manifest import MODEL, NORMALIZER
+from frictiongym.agents.learned.policy import (
+    LayerNetwork,
+    LearnedPolicy,
+    Normalizer,
+    algorithm_class,
+    network_of,
+)
 from frictiongym.envs.config import (
     ConfigError,
 )
@@ -24,10 +34,6 @@ from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import load_suite, suite_held_out
 
 from ..base import ZERO, Controller
-from ..evaluate import EnvCache, run_episodes
-from ..learned import LayerNetwork, LearnedPolicy, Normalizer, algorithm_class, network_of
-from ..manifest import MODEL, NORMALIZER
-from ..model_folder import sha256_bytes, write_policy
 from ..registry import BUILTIN, base_controller
 from .config import VALIDATION_SUITE, RunConfig
 
@@ -144,7 +150,7 @@ class Snapshot:
             atomic_write(folder / NORMALIZER, lambda p: p.write_bytes(self.normalizer))
 
     def write_model(self, folder: Path) -> dict[str, Any]:
-        """The model folder's policy (model_folder.write_policy: the safe format), or, for a policy it
+        """The model folder's policy (learned.folder.write_policy: the safe format), or, for a policy it
         cannot hold, the SB3 zip (then only convert-model --trust-pickle can read it); returns the
         manifest's fields for it."""
         if self.network is None:

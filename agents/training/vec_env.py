@@ -22,11 +22,16 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from frictiongym.agents.learned.policy import (
+    difference_indices,
+    model_input_size,
+    policy_observation,
+    residual_action,
+)
 from frictiongym.envs.suites import seed_range
 from frictiongym.envs.vector import ServoVectorEnv
 
 from ..base import Controller, EpisodeContext
-from ..learned import difference_indices, model_input_size, policy_observation, residual_action
 from ..settings import knowledge_defaults
 
 TRAINING_SEEDS, _LAST = seed_range("training")  # configs/suites.yaml's range: no suite or study uses it

@@ -34,13 +34,13 @@ API_MODULES = (
     "frictiongym.envs.units",
     "frictiongym.agents.base",
     "frictiongym.agents.registry",
-    "frictiongym.agents.evaluate",
-    "frictiongym.agents.leaderboard",
-    "frictiongym.agents.limits",
-    "frictiongym.agents.stats",
-    "frictiongym.agents.tuned",
-    "frictiongym.agents.runtime",
-    "frictiongym.agents.model_folder",
+    "frictiongym.agents.evaluation.evaluate",
+    "frictiongym.agents.evaluation.leaderboard",
+    "frictiongym.agents.evaluation.limits",
+    "frictiongym.agents.evaluation.stats",
+    "frictiongym.agents.tuning.tuned",
+    "frictiongym.agents.deploy.runtime",
+    "frictiongym.agents.learned.folder",
 )
 
 

@@ -15,7 +15,7 @@ Each scenario declares its uncompensated loop (`benchmark.uncompensated`, e.g. P
   true actuator gain; the sum of loop and compensation is clipped as any action is.
 
 What the loop would do without friction (Ideal) is the reference of the leaderboard's score g
-(agents/leaderboard.py); the Oracle shows how much of it a perfect friction estimate recovers.
+(agents/evaluation/leaderboard.py); the Oracle shows how much of it a perfect friction estimate recovers.
 """
 
 from __future__ import annotations
@@ -25,11 +25,10 @@ from typing import ClassVar
 
 import numpy as np
 
+from frictiongym.agents.base import Controller, EpisodeContext
 from frictiongym.envs.plants.mjcf import friction_joints
 from frictiongym.envs.plants.params import EpisodeParams
 from frictiongym.envs.scenario import TRACKING, Scenario
-
-from .base import Controller, EpisodeContext
 
 
 class LimitReference(Controller):

@@ -16,7 +16,7 @@ at most MAX_EFFORT_RATIO times its effort_rms, no new limit cycle) and 100 if an
 The tuned values go to configs/tuned.yaml (one entry per family and plant, with its manifest: budget,
 trials, seed, the exact command, commit, version, wall time, objective of the design and of the tuned
 values per scenario), written atomically; the registry lists `<family>[tuned]` for every family there
-(agents/tuned.py).
+(agents/tuning/tuned.py).
 """
 
 from __future__ import annotations
@@ -33,14 +33,14 @@ import numpy as np
 import yaml
 from tqdm import tqdm
 
+from frictiongym.agents import registry
+from frictiongym.agents.evaluation import stats
+from frictiongym.agents.evaluation.engine import provenance
+from frictiongym.agents.evaluation.evaluate import EnvCache, EpisodeResult, evaluate
+from frictiongym.agents.tuning.tuned import build, tunable, tuned_entries
 from frictiongym.envs.records import atomic_text, package_version
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.suites import Episode, load_suite
-
-from . import registry, stats
-from .engine import provenance
-from .evaluate import EnvCache, EpisodeResult, evaluate
-from .tuned import build, tunable, tuned_entries
 
 DIVERGED_COST = 100.0
 
@@ -238,6 +238,7 @@ def write_tuned(path: Path, family: str, plant: str, entry: dict[str, Any]) -> N
     data = dict(tuned_entries.__wrapped__(path)) if path.is_file() else {}
     data.setdefault(family, {})[plant] = entry
     header = (
-        "# Tuned classical settings (agents/tuning.py, `frictiongym tune`); each entry's manifest says how.\n"
+        "# Tuned classical settings (agents/tuning/search.py, `frictiongym tune`); each entry's manifest says"
+        " how.\n"
     )
     atomic_text(path, header + yaml.safe_dump(data, sort_keys=True, allow_unicode=True, width=100))

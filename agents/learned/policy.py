@@ -8,7 +8,7 @@ with, which the controller asks the env for) followed, in residual mode, by the 
 action, used by the training wrapper (agents/training/) and by LearnedPolicy alike. `LearnedPolicy.actions`
 acts on many episodes' observations in one call (the leaderboard's and validation's batched episodes,
 evaluate.run_episodes): its network is a `RowwiseActor`, whose rows never interact, so each episode gets
-the action it would get alone. A saved model is that network's layers (agents/model_folder.py), so
+the action it would get alone. A saved model is that network's layers (agents/learned/folder.py), so
 evaluating one needs numpy only.
 """
 
@@ -22,9 +22,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from frictiongym.agents.base import Controller, EpisodeContext, Lockstep
 from frictiongym.envs.scenario import REGULATION, Scenario
-
-from .base import Controller, EpisodeContext, Lockstep
 
 
 @dataclasses.dataclass(frozen=True)
@@ -235,7 +234,7 @@ class RowwiseActor:
             return None
         _, features, leaves, squashed = found
         extractor = type(features).__name__
-        if extractor == "SelectFeatures":  # agents/asymmetric.py: the actor's columns of the observation
+        if extractor == "SelectFeatures":  # training/asymmetric.py: the actor's columns of the observation
             columns = tuple(int(i) for i in features.indices.tolist())
         elif extractor == "FlattenExtractor" and len(policy.observation_space.shape) == 1:
             columns = None
@@ -383,7 +382,7 @@ class ActionScale:
 @dataclasses.dataclass(frozen=True)
 class LayerNetwork:
     """A deterministic actor as plain layers (RowwiseActor) and its action scaling: what the safe model
-    format (agents/model_folder.py) stores and what every feed-forward SAC / TD3 / TQC actor is evaluated
+    format (agents/learned/folder.py) stores and what every feed-forward SAC / TD3 / TQC actor is evaluated
     as, numpy only. `observes` is the model input's shape, `algorithm` the algorithm that trained it."""
 
     actor: RowwiseActor
@@ -413,7 +412,7 @@ class SB3Network:
     """An SB3 model that is not a LayerNetwork (a recurrent PPO, gSDE, CrossQ's batch
     renormalisation, sbx's JAX models): acted through SB3, one row at a time, deterministic. Only models
     of this process (training, validation) or loaded with an explicit trust in pickles
-    (model_folder.load_sb3_zip) reach it."""
+    (folder.load_sb3_zip) reach it."""
 
     def __init__(self, model: Any):
         self.model = model

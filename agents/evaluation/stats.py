@@ -19,10 +19,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.stats import bootstrap, mannwhitneyu, trim_mean
 
-from .base import ZERO
+from frictiongym.agents.base import ZERO
 
 if TYPE_CHECKING:
-    from .evaluate import EpisodeResult
+    from frictiongym.agents.evaluation.evaluate import EpisodeResult
 
 CONFIDENCE = 0.95
 N_RESAMPLES = 2000

@@ -20,13 +20,11 @@ from typing import Any
 import gymnasium as gym
 import yaml
 
-from frictiongym.envs.config import ConfigError
-
-from .evaluate import EnvCache
-from .learned import LearnedPolicy, PolicyInputs, algorithm_class
-from .model_folder import load_sb3_zip
-from .registry import base_controller
-from .training import (
+from frictiongym.agents.evaluation.evaluate import EnvCache
+from frictiongym.agents.learned.folder import load_sb3_zip
+from frictiongym.agents.learned.policy import LearnedPolicy, PolicyInputs, algorithm_class
+from frictiongym.agents.registry import base_controller
+from frictiongym.agents.training import (
     ResidualEnv,
     best_classical,
     classical_on,
@@ -34,6 +32,7 @@ from .training import (
     validation_episodes,
     zero_output,
 )
+from frictiongym.envs.config import ConfigError
 
 
 class Residual(ResidualEnv):

@@ -1,4 +1,4 @@
-"""Tuned classical settings: configs/tuned.yaml (written by `frictiongym tune`, agents/tuning.py) read
+"""Tuned classical settings: configs/tuned.yaml (written by `frictiongym tune`, agents/tuning/search.py) read
 into `<family>[tuned]` twins, each a classical baseline like its family, with the settings tuned on the
 validation suite, defined on the plants it was tuned for."""
 
@@ -11,10 +11,9 @@ from typing import Any
 
 import numpy as np
 
+from frictiongym.agents.base import Controller, EpisodeContext
 from frictiongym.envs.config import ConfigError, configs_dir, load_yaml
 from frictiongym.envs.scenario import Scenario
-
-from .base import Controller, EpisodeContext
 
 TUNED_FILE = "tuned.yaml"
 SUFFIX = "[tuned]"

@@ -14,11 +14,10 @@ from typing import Any
 
 import yaml
 
+from frictiongym.agents.learned.folder import MANIFEST, POLICY, UntrustedModel, file_in_folder
+from frictiongym.agents.learned.policy import PolicyInputs
 from frictiongym.envs.config import ConfigError, Node, load_yaml
 from frictiongym.envs.records import atomic_text
-
-from .learned import PolicyInputs
-from .model_folder import MANIFEST, POLICY, UntrustedModel, file_in_folder
 
 # a run's SB3 model and VecNormalize (pickles: its checkpoint, and a zip converted by convert-model)
 MODEL, NORMALIZER = "model.zip", "vecnormalize.pkl"
@@ -33,7 +32,7 @@ class Manifest:
     name: str
     algorithm: str
     model: str = POLICY
-    network: dict[str, Any] = field(default_factory=dict)  # model_folder.network_section
+    network: dict[str, Any] = field(default_factory=dict)  # folder.network_section
     sha256: dict[str, str] = field(default_factory=dict)  # file name -> SHA-256 of every file named
     scenario: str | None = None
     plants: tuple[str, ...] = ()  # the plants the model applies to (empty: any)
@@ -75,7 +74,7 @@ class Manifest:
     def read(cls, folder: Path) -> Manifest:
         """manifest.yaml of a model folder, every key checked (errors name the file and the key), its model
         file a regular file inside the folder with a recorded SHA-256 (checked when it is loaded:
-        model_folder.read_policy). A pickle-bearing SB3 zip is refused, naming the conversion command."""
+        folder.read_policy). A pickle-bearing SB3 zip is refused, naming the conversion command."""
         path = Path(folder) / MANIFEST
         m = Node(load_yaml(path), str(path))
         kw: dict[str, Any] = {"name": m.string("name"), "algorithm": m.string("algorithm")}

@@ -31,18 +31,17 @@ from typing import Any, ClassVar
 import numpy as np
 import yaml
 
+from frictiongym.agents import registry
+from frictiongym.agents.base import Controller, EpisodeContext
+from frictiongym.agents.evaluation.evaluate import controller_overrides
+from frictiongym.agents.learned.folder import file_in_folder, read_checked, sha256_bytes
+from frictiongym.agents.learned.manifest import MANIFEST, Manifest
+from frictiongym.agents.learned.policy import LayerNetwork, LearnedPolicy
+from frictiongym.agents.settings import knowledge_defaults
 from frictiongym.envs.config import ConfigError, Node, load_yaml
 from frictiongym.envs.records import atomic_text, atomic_write
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.step import sanitize_observation
-
-from . import registry
-from .base import Controller, EpisodeContext
-from .evaluate import controller_overrides
-from .learned import LayerNetwork, LearnedPolicy
-from .manifest import MANIFEST, Manifest
-from .model_folder import file_in_folder, read_checked, sha256_bytes
-from .settings import knowledge_defaults
 
 FORMAT = "frictiongym.runtime/1"
 RUNTIME, ONNX, MODEL_DIR = "runtime.yaml", "policy.onnx", "model"

@@ -1,7 +1,7 @@
-"""The leaderboard's report: its computed Board (agents/leaderboard.py) rendered as leaderboard.md's text,
-the leaderboard.csv and aggregate.csv texts, and its figures. Rendering only: nothing here evaluates,
-scores or writes a file (the leaderboard computes, renders with this module, then writes), as
-python-control keeps timeresp (computing) apart from timeplot (drawing)."""
+"""The leaderboard's report: its computed Board (board.py, from leaderboard.py) rendered as
+leaderboard.md's text, the leaderboard.csv and aggregate.csv texts, and its figures. Rendering only:
+nothing here evaluates, scores or writes a file (the leaderboard computes, renders with this module, then
+writes), as python-control keeps timeresp (computing) apart from timeplot (drawing)."""
 
 from __future__ import annotations
 
@@ -14,16 +14,16 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from frictiongym.agents import registry
+from frictiongym.agents.base import ZERO
+from frictiongym.agents.evaluation import stats
+from frictiongym.agents.evaluation.stats import MAX_EFFORT_RATIO
 from frictiongym.envs.metrics import METRIC_NAMES
 from frictiongym.envs.records import pyplot
 from frictiongym.envs.scenario import Scenario
 
-from . import registry, stats
-from .base import ZERO
-from .stats import MAX_EFFORT_RATIO
-
 if TYPE_CHECKING:
-    from .leaderboard import Board
+    from frictiongym.agents.evaluation.board import Board
 
 REFERENCES = registry.REFERENCES  # Zero, Ideal, Oracle: drawn as references, never ranked
 

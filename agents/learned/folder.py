@@ -2,9 +2,9 @@
 
 A model folder (agents/models/<group>/<name>/, or any folder passed with --models) holds:
 
-    manifest.yaml         what the model is and how it came to be (agents/manifest.py), read with a safe
-                          YAML loader; its `network` section is the architecture, its `sha256` section the
-                          digest of every file it names
+    manifest.yaml         what the model is and how it came to be (agents/learned/manifest.py), read with a
+                          safe YAML loader; its `network` section is the architecture, its `sha256`
+                          section the digest of every file it names
     policy.safetensors    the actor's weights and biases ("layer<i>.weight" (out, in), "layer<i>.bias"),
                           the action bounds ("action.low", "action.high") and the frozen observation
                           statistics ("normalizer.mean", "normalizer.var"): raw arrays behind a JSON header
@@ -33,12 +33,17 @@ import numpy as np
 from safetensors import SafetensorError
 from safetensors.numpy import load, save
 
+from frictiongym.agents.learned.policy import (
+    ActionScale,
+    LayerNetwork,
+    Normalizer,
+    RowwiseActor,
+    algorithm_class,
+)
 from frictiongym.envs.config import ConfigError, Node
 from frictiongym.envs.records import atomic_write
 
-from .learned import ActionScale, LayerNetwork, Normalizer, RowwiseActor, algorithm_class
-
-MANIFEST = "manifest.yaml"  # a model folder's description (agents/manifest.py)
+MANIFEST = "manifest.yaml"  # a model folder's description (agents/learned/manifest.py)
 
 POLICY = "policy.safetensors"  # the safe format's one data file
 LAYER_KINDS = ("linear", "relu", "tanh")  # RowwiseActor's layers

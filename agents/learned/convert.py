@@ -1,5 +1,5 @@
 """Converting a model folder of the SB3 form (manifest.yaml naming model.zip and vecnormalize.pkl) into the
-safe form (agents/model_folder.py): the one place that loads those pickles, and only when trusted.
+safe form (agents/learned/folder.py): the one place that loads those pickles, and only when trusted.
 `frictiongym convert-model` is its front end."""
 
 from __future__ import annotations
@@ -9,12 +9,11 @@ from pathlib import Path
 
 import yaml
 
+from frictiongym.agents.learned.folder import file_in_folder, load_sb3_zip, read_policy, write_policy
+from frictiongym.agents.learned.manifest import MANIFEST, Manifest
+from frictiongym.agents.learned.policy import LayerNetwork, network_of
 from frictiongym.envs.config import Node, load_yaml
 from frictiongym.envs.records import atomic_text, atomic_write
-
-from .learned import LayerNetwork, network_of
-from .manifest import MANIFEST, Manifest
-from .model_folder import file_in_folder, load_sb3_zip, read_policy, write_policy
 
 
 def portable_command(command: str, root: Path) -> str:

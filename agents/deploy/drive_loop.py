@@ -1,4 +1,4 @@
-"""The real-time loop between an exported controller (agents/runtime.py) and a drive, over the drive
+"""The real-time loop between an exported controller (agents/deploy/runtime.py) and a drive, over the drive
 protocol (envs/drive_protocol.py), with a safety supervisor between them (frictiongym run-drive).
 
 The drive paces the loop: it starts its clock when the controller's first datagram (a HOLD, sent every
@@ -36,11 +36,10 @@ from typing import Any
 
 import numpy as np
 
+from frictiongym.agents.deploy.runtime import Runtime
 from frictiongym.envs.drive_protocol import HOLD, RUN, STOP, pack_command, unpack_readings
 from frictiongym.envs.records import atomic_text
 from frictiongym.envs.scenario import Scenario
-
-from .runtime import Runtime
 
 STARTUP_S = 10.0  # s: the drive's first readings must come within this, or the run stops (watchdog)
 HELLO_S = 0.01  # s: until then a HOLD is sent this often (the drive starts its clock on the first)

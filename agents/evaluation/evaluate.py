@@ -10,15 +10,14 @@ from typing import Any
 import numpy as np
 from tqdm import tqdm
 
+from frictiongym.agents.base import Controller, EpisodeContext
+from frictiongym.agents.settings import knowledge_defaults
 from frictiongym.envs import env_id
 from frictiongym.envs.core import ServoCore, check_action, check_options
 from frictiongym.envs.plants import PlantSpec
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.suites import STRUCTURAL, Episode
-
-from .base import Controller, EpisodeContext
-from .settings import knowledge_defaults
 
 
 @dataclass

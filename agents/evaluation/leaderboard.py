@@ -1,7 +1,7 @@
 """Leaderboard: every applicable controller, and the reference rows, on the identical episodes of a suite.
 
-Reference rows, run on every episode and never ranked (agents/limits.py): `Zero` (doing nothing), the
-scenario's uncompensated loop (benchmark.uncompensated, also an entry), `Ideal` (that loop on the
+Reference rows, run on every episode and never ranked (agents/evaluation/limits.py): `Zero` (doing nothing),
+the scenario's uncompensated loop (benchmark.uncompensated, also an entry), `Ideal` (that loop on the
 friction-free twin of the episode) and `Oracle` (that loop plus the true friction torque).
 
 Per scenario: its main metric (declared in the scenario's YAML, lower is better) with a 95 % bootstrap
@@ -11,31 +11,32 @@ paired comparison of every controller against the scenario's best classical base
 episodes. Per plant, over equal sets of scenarios only: the IQM of g with stratified-bootstrap
 intervals, the probability of improvement between the top entries, performance profiles of g.
 
-Computed here (a Board), rendered by leaderboard_report (text, CSV, figures), then written (`write`).
+Computed here (a Board: board.py), rendered by report.py (text, CSV, figures) and page.py (the web
+page), then written (`write`).
 """
 
 from __future__ import annotations
 
 import math
 from collections import defaultdict
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from frictiongym.agents import registry
+from frictiongym.agents.evaluation import engine, report, stats
+from frictiongym.agents.evaluation.board import Board
+from frictiongym.agents.evaluation.evaluate import EnvCache, EpisodeResult, run_episode, run_episodes
+from frictiongym.agents.evaluation.page import page
+from frictiongym.agents.evaluation.stats import MAX_EFFORT_RATIO, why_not_beats
+from frictiongym.agents.figures import save_figure, smallest_text_px
 from frictiongym.envs.metrics import METRIC_NAMES
 from frictiongym.envs.records import atomic_text, command_line, csv_text, git_commit, package_version
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.suites import Episode, load_suite, suite_names
-
-from . import engine, registry, stats
-from . import leaderboard_report as report
-from .evaluate import EnvCache, EpisodeResult, run_episode, run_episodes
-from .figures import save_figure, smallest_text_px
-from .leaderboard_page import page
-from .stats import MAX_EFFORT_RATIO, why_not_beats
 
 REFERENCES = registry.REFERENCES  # Zero, Ideal, Oracle: run on every episode, never ranked
 TOP = 5  # entries per set in the probability-of-improvement matrix
@@ -266,26 +267,9 @@ def responses(
     return out
 
 
-@dataclass
-class Board:
-    """A leaderboard as computed: what leaderboard_report renders."""
-
-    suite: str
-    scenarios: dict[str, Scenario]
-    results: list[EpisodeResult]
-    table: dict[str, list[dict]]  # summarize
-    aggregate: list[dict]  # aggregate
-    verdicts: list[dict]  # verdicts
-    penalties: dict[str, float]  # penalty, per scenario
-    responses: dict[str, list[EpisodeResult]]  # per scenario: best learned, best classical, loop, Ideal
-    about: dict[str, str] = field(
-        default_factory=dict
-    )  # saved model's id -> what it is (registry.descriptions)
-
-
 def write(board: Board, out: Path) -> None:
     """leaderboard.csv, aggregate.csv, answer.md (the question per plant), the figures (PNG),
-    leaderboard.md (linking them) and index.html (the page: leaderboard_page) into out, each
+    leaderboard.md (linking them) and index.html (the page: page.py) into out, each
     atomically."""
     atomic_text(out / "leaderboard.csv", report.table_csv(board))
     atomic_text(out / "aggregate.csv", report.aggregate_csv(board.aggregate))

@@ -32,14 +32,19 @@ from typing import Any
 
 from tqdm import tqdm
 
+from frictiongym.agents import registry
+from frictiongym.agents.evaluation.evaluate import (
+    LOCKSTEP,
+    EnvCache,
+    EpisodeResult,
+    params_text,
+    run_episodes,
+)
+from frictiongym.agents.evaluation.stats import Scoring, attach_scores
 from frictiongym.envs.metrics import METRIC_NAMES
 from frictiongym.envs.records import atomic_text, git_commit, package_version
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
-
-from . import registry
-from .evaluate import LOCKSTEP, EnvCache, EpisodeResult, params_text, run_episodes
-from .stats import Scoring, attach_scores
 
 PARENT_POLL_S = 0.5  # how often a pool worker checks that its parent is alive (s)
 CHUNK = LOCKSTEP  # episodes per task, stepped together; a killed run loses little, the pool stays balanced

@@ -2,7 +2,7 @@
 per-plant aggregates, the verdicts on the learned and plug-in entries and one table per scenario, each
 sortable by a click on its header, reference rows marked, the figures embedded (PNG data URIs) and the
 run's provenance. No network, no external file: the page opens from a laptop, a CI artefact or a mail.
-Rendering only, like leaderboard_report: the leaderboard computes, renders, then writes."""
+Rendering only, like report.py: the leaderboard computes, renders, then writes."""
 
 from __future__ import annotations
 
@@ -12,10 +12,16 @@ import io
 import math
 from typing import TYPE_CHECKING
 
-from .leaderboard_report import ANSWER_HEAD, G_MEANING, MAX_EFFORT_RATIO, answer_rows, headline
+from frictiongym.agents.evaluation.report import (
+    ANSWER_HEAD,
+    G_MEANING,
+    MAX_EFFORT_RATIO,
+    answer_rows,
+    headline,
+)
 
 if TYPE_CHECKING:
-    from .leaderboard import Board
+    from frictiongym.agents.evaluation.board import Board
 
 STYLE = """
 body { font: 14px/1.45 system-ui, sans-serif; margin: 2em auto; max-width: 1200px; padding: 0 1em;

@@ -14,14 +14,13 @@ from typing import Any
 
 import numpy as np
 
+from frictiongym.agents.base import Controller
+from frictiongym.agents.evaluation.evaluate import EnvCache, run_episodes
+from frictiongym.agents.figures import save_figure
 from frictiongym.envs.metrics import from_first_period
 from frictiongym.envs.records import pyplot
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
-
-from .base import Controller
-from .evaluate import EnvCache, run_episodes
-from .figures import save_figure
 
 FIELDS = [
     "controller",

@@ -22,11 +22,17 @@ import os
 from pathlib import Path
 from typing import Any
 
+from frictiongym.agents.evaluation.engine import ray_init
+from frictiongym.agents.training import (
+    RunConfig,
+    TrainingRun,
+    load_config,
+    parse_run_config,
+    raw_config,
+    scenario_settings,
+)
 from frictiongym.envs.config import ConfigError, Node, load_yaml, preset_path
 from frictiongym.envs.records import command_line
-
-from .engine import ray_init
-from .training import RunConfig, TrainingRun, load_config, parse_run_config, raw_config, scenario_settings
 
 SEARCHES = ("grid", "optuna")
 DISTRIBUTIONS = {"grid": "grid", "uniform": "uniform", "loguniform": "loguniform", "choice": "choice"}
