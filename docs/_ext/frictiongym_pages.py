@@ -324,8 +324,12 @@ def generate(_app: object = None) -> None:
         write(OUT / "plants" / f"{cls.plant}.md", plant_page(env_id, cls, mine, suites))
     write(OUT / "scenarios.md", scenarios_page(scenarios, suites))
     write(OUT / "controllers.md", controllers_page(scenarios))
-    for name, text in api_pages().items():
+    pages = api_pages()
+    for name, text in pages.items():
         write(OUT / "api" / name, text)
+    for old in (OUT / "api").glob("*.md"):  # a module that moved or left: its page goes too
+        if old.name not in pages:
+            old.unlink()
     write(OUT / "env_versions.md", env_versions())
 
 
