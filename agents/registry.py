@@ -279,6 +279,25 @@ def entries(
     return names, tuple(dict.fromkeys(sources))
 
 
+def allowed_sources(recorded: tuple[str, ...], allowed: Sequence[str | Path], where: str) -> tuple[str, ...]:
+    """A finished run's sources (run.json's model folders and plug-in specs), each checked against what
+    the command line allows (`allowed`: --models folders and --controllers specs): a results folder is
+    data, so nothing it names is imported or read unless the user names it too. One line naming the first
+    that is not, and the flag that allows it."""
+    specs = {str(a) for a in allowed if is_controller_spec(a)}
+    folders = {p.resolve() for p in model_dirs([a for a in allowed if not is_controller_spec(a)])}
+    for source in recorded:
+        if is_controller_spec(source):
+            if source not in specs:
+                raise ValueError(
+                    f"{where} names the plug-in {source!r}, whose code would run: pass --controllers "
+                    f"{source} to allow it"
+                )
+        elif Path(source).resolve() not in folders:
+            raise ValueError(f"{where} names the model folder {source!r}: pass --models {source} to allow it")
+    return recorded
+
+
 def model_dirs(paths: Sequence[str | Path]) -> list[Path]:
     """The model folders under the given paths (a path is a model folder, or holds model folders;
     controller specs among them are skipped: controller_factory's)."""

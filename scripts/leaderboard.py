@@ -3,7 +3,8 @@
     frictiongym leaderboard [--suite default | --scenarios A B --seeds 5000-5049 [--randomize]]
                             [--controllers PD PID ...] [--models DIR ...] [--workers N]
                             [--out out/leaderboard]
-    frictiongym leaderboard --report-from DIR --out OTHER    (a finished run's report, DIR only read)
+    frictiongym leaderboard --report-from DIR --out OTHER    (a finished run's report, DIR only read;
+                            its models and plug-ins only those --models and --controllers name)
 
 Episodes run as jobs on N worker processes (default: every core) and land in OUT/episodes.csv as they
 finish; rerunning with the same options and --out resumes, and other options into the same --out are
@@ -72,8 +73,13 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.report_from is not None:
 
+        # what the run's folder may name: the command line's models (default: the committed ones) and
+        # plug-ins (--controllers path.py:Class); run.json itself is data
+        allowed = (*(args.models if args.models is not None else committed_models(*LEADERBOARD_GROUPS)),)
+        allowed += tuple(c for c in args.controllers or () if ":" in c)
+
         def report() -> int:
-            leaderboard.report_from(args.report_from, args.out)
+            leaderboard.report_from(args.report_from, args.out, tuple(map(str, allowed)))
             print(f"wrote {args.out / 'leaderboard.md'}, leaderboard.csv and plots from {args.report_from}")
             return 0
 

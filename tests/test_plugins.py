@@ -93,3 +93,63 @@ def test_a_file_without_its_class_gets_the_form_and_the_classes_it_defines(plugi
 def test_a_wrong_class_name_lists_the_files_controllers(plugin, tmp_path, capsys):
     err = leaderboard(capsys, tmp_path / "run", f"{plugin}:Nope")
     assert "has no 'Nope'; its controllers: NaNs, Signature" in err
+
+
+MARKER_PLUGIN = '''
+from pathlib import Path
+from typing import ClassVar
+
+from frictiongym.agents.base import PhysicalController
+
+Path(__file__).with_name("imported").write_text("the plug-in's code ran")
+
+
+class Marker(PhysicalController):
+    """Zero command; importing its file leaves a marker beside it."""
+
+    name: ClassVar[str] = "Marker"
+
+    def command(self, y, r):
+        return 0.0
+'''
+
+
+def test_a_results_folder_runs_no_code_it_names(tmp_path, capsys):
+    """--report-from reads run.json as data: a plug-in it names is imported only when the command line
+    names it too (--controllers), else the report is refused in one line naming the flag; the same for a
+    model folder (--models)."""
+    plugin = tmp_path / "code" / "marker.py"
+    plugin.parent.mkdir()
+    plugin.write_text(textwrap.dedent(MARKER_PLUGIN))
+    run = tmp_path / "run"
+    argv = ["leaderboard", "--scenarios", "kang_regulation", "--seeds", "5000", "--workers", "1", "--models"]
+    assert cli.main([*argv, "--controllers", "PD", f"{plugin}:Marker", "--out", str(run)]) == 0
+    (plugin.parent / "imported").unlink()  # the run itself imported it, as it should
+    capsys.readouterr()
+    assert (
+        cli.main(["leaderboard", "--report-from", str(run), "--models", "--out", str(tmp_path / "r1")]) == 2
+    )
+    err = capsys.readouterr().err.strip()
+    assert (
+        f"names the plug-in '{plugin}:Marker', whose code would run: pass --controllers {plugin}:Marker"
+        in err
+    )
+    assert not (plugin.parent / "imported").exists() and not (tmp_path / "r1" / "index.html").exists()
+    # named on the command line: allowed, and its report written
+    report = ["leaderboard", "--report-from", str(run), "--models", "--controllers", f"{plugin}:Marker"]
+    assert cli.main([*report, "--out", str(tmp_path / "r2")]) == 0
+    assert (tmp_path / "r2" / "index.html").is_file()
+    # a model folder run.json names but the command line does not: refused by name
+    folder = next(p for p in (Path(__file__).parents[1] / "agents/models/specialist").iterdir() if p.is_dir())
+    assert (
+        cli.main([*argv[:-1], "--models", str(folder), "--controllers", "PD", "--out", str(tmp_path / "m")])
+        == 0
+    )
+    capsys.readouterr()
+    assert (
+        cli.main(
+            ["leaderboard", "--report-from", str(tmp_path / "m"), "--models", "--out", str(tmp_path / "r3")]
+        )
+        == 2
+    )
+    assert f"names the model folder '{folder}': pass --models {folder}" in capsys.readouterr().err

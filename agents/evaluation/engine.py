@@ -499,17 +499,18 @@ def evaluate_to(
 
 
 def finished_run(
-    src: Path,
+    src: Path, allowed: tuple[str, ...] = ()
 ) -> tuple[dict[str, Any], list[EpisodeResult], list[Job], list[tuple[str, str, str]]]:
     """A finished run's options (run.json), its results in canonical order and scored, its jobs and
     skipped pairs, read without writing anything into src (read-only media are fine): every planned job
-    must have exactly one reusable row, or this names what is missing (resume the run first)."""
+    must have exactly one reusable row, or this names what is missing (resume the run first). The sources
+    run.json names (model folders, plug-ins) are used only where `allowed` names them too."""
     run, path = src / "run.json", src / "episodes.csv"
     if not run.is_file() or not path.is_file():
         raise RunMismatch(f"{src} holds no finished run (run.json and episodes.csv)")
     options = json.loads(run.read_text())
     episodes = [Episode.from_dict(e) for e in options["episodes"]]
-    models = tuple(options["models"])
+    models = registry.allowed_sources(tuple(options["models"]), allowed, str(run))
     jobs, skipped = plan(options["controllers"], episodes, models)
     rows, refused = read_rows(path)
     results, dropped = reusable(rows, jobs, provenance())

@@ -384,10 +384,12 @@ def summarize_and_write(
     return table
 
 
-def report_from(src: Path, out: Path) -> dict[str, list[dict]]:
+def report_from(src: Path, out: Path, allowed: tuple[str, ...] = ()) -> dict[str, list[dict]]:
     """The report of the finished run in src (engine.finished_run: read only, every episode checked)
-    written to out, e.g. from read-only media; the tables."""
-    options, results, _ = engine.finished_run(src)
+    written to out, e.g. from read-only media; the tables. Nothing src names is imported or loaded unless
+    `allowed` (what the command line names: model folders and plug-in specs) holds it too: a results
+    folder is data (registry.allowed_sources)."""
+    options, results, _ = engine.finished_run(src, allowed)
     episodes = [Episode.from_dict(e) for e in options["episodes"]]
     suite = next((name for name in suite_names() if load_suite(name) == episodes), "inline")
     return summarize_and_write(suite, episodes, results, tuple(options["models"]), out)
