@@ -1,6 +1,8 @@
-"""Test markers: `slow` marks a test that trains, runs a suite or a study (identification, a stiff ODE
-reference), sends real signals or starts a service; the inner loop is `python -m pytest -m "not slow"`,
-CI runs everything. Helpers shared by test modules: `lockstep` (single vs vector env bit for bit) and
+"""Test markers: `slow` marks a test that is slow for a reason, said beside its mark: it trains or tunes,
+runs a suite, a leaderboard with its figures or a study (identification, a reproduction of a document's
+numbers, a stiff ODE reference), starts fresh interpreters, a process pool or a service, or sends real
+signals; the inner loop is `python -m pytest -m "not slow"` (about a minute on 2 cores), CI runs
+everything. Helpers shared by test modules: `lockstep` (single vs vector env bit for bit) and
 `write_config` (a small training config, test_training and test_learned), `load_script` (a front end of
 scripts/ as a module, for its functions)."""
 
@@ -22,7 +24,7 @@ def load_script(name: str) -> ModuleType:
 
 def pytest_configure(config):
     config.addinivalue_line(
-        "markers", "slow: trains, runs a suite or starts a service (deselect: -m 'not slow')"
+        "markers", "slow: slow for the reason beside its mark (deselect: -m 'not slow')"
     )
 
 

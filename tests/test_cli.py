@@ -13,6 +13,7 @@ from frictiongym.scripts import cli
 from frictiongym.scripts.bench_cli import heavy_imports
 
 
+@pytest.mark.slow  # fresh interpreters
 @pytest.mark.parametrize("argv", [["--help"], *([c, "--help"] for c in cli.COMMANDS)], ids=lambda a: a[0])
 def test_help_imports_no_heavy_module(argv: list[str]) -> None:
     assert heavy_imports(argv) == [], f"frictiongym {' '.join(argv)} imports them"

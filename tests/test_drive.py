@@ -165,6 +165,7 @@ def test_the_protocol_round_trips_and_refuses_what_it_is_not():
         proto.unpack_command(proto.pack_readings(1, 0.0, [0.0]))
 
 
+@pytest.mark.slow  # real signals to a process
 def test_ctrl_c_stops_the_command_line_loop_cleanly(lab_pd, tmp_path):
     """The front ends as a user runs them, in two processes: SIGINT to run-drive sends STOP, writes the
     log and exits 0."""

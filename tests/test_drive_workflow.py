@@ -90,6 +90,7 @@ def test_a_rotary_log_gets_no_linear_draft_preset(tmp_path):
     ]
 
 
+@pytest.mark.slow  # an identification study
 def test_the_measurement_chooses_no_actuation_delay_and_stiff_bristles():
     # the preset's two choices made on the estimation log (configs/plants/emps.yaml): the simulated
     # force is closest to the measured one with no delay beyond the hold, and with the preset's σ0

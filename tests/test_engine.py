@@ -43,6 +43,7 @@ def test_applicability_skips_with_a_reason_and_never_crashes(serial):
     assert "encoder" in reasons[("PD", "flexible_speed_step")]  # PD needs a position sensor
 
 
+@pytest.mark.slow  # a process pool
 def test_parallel_run_equals_serial_bit_for_bit(serial, tmp_path):
     out, _, _ = serial
     engine.evaluate_to(tmp_path, CONTROLLERS, EPISODES, OPTIONS, workers=2, progress=False)
@@ -136,6 +137,7 @@ def test_entry_point_controllers_are_registered(monkeypatch):
     registry._available.cache_clear()
 
 
+@pytest.mark.slow  # trains a model
 def test_saved_model_is_an_entry_and_a_mismatched_scenario_is_skipped_with_its_reason(tmp_path):
     from stable_baselines3 import PPO
 

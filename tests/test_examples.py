@@ -30,6 +30,7 @@ class HalfPID(PID):
         return 0.5 * super().command(y, r)
 
 
+@pytest.mark.slow  # a process pool
 def test_the_example_runs_on_the_leaderboard_from_its_file_with_two_workers(tmp_path):
     """The example's own command line (two worker processes build it from its file): its rows stand
     beside the built-ins' on the tracking scenario, with finite metrics and a moderate effort; at a
@@ -50,6 +51,7 @@ def test_the_example_runs_on_the_leaderboard_from_its_file_with_two_workers(tmp_
     assert "SmoothCoulombPID" in (out / "leaderboard.md").read_text()
 
 
+@pytest.mark.slow  # three leaderboards
 def test_a_class_and_a_spec_resolve_to_the_same_controller_and_an_instance_is_refused():
     episodes = [Episode("kang_ramp", 5000, True)]
     by_class, _ = leaderboard.run("inline", [HalfPID], None, False, 1, episodes)

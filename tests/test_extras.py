@@ -39,6 +39,7 @@ def test_every_sub_command_s_help_works_without_the_extras(command):
     assert p.returncode == 0 and p.stdout.startswith("usage: frictiongym"), p.stderr[-500:]
 
 
+@pytest.mark.slow  # fresh interpreters
 @pytest.mark.parametrize(
     ("args", "extra"),
     [
@@ -55,6 +56,7 @@ def test_a_command_that_needs_an_extra_names_it_in_one_line(args, extra):
     assert f"needs the {extra} extra" in lines[0] and f"[{extra}]" in lines[0] and "pip install" in lines[0]
 
 
+@pytest.mark.slow  # fresh interpreters
 def test_the_leaderboard_runs_the_committed_learned_models_without_torch(tmp_path):
     out = tmp_path / "lb"
     p = without_extras(

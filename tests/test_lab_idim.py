@@ -76,6 +76,7 @@ def test_a_csv_without_the_needed_columns_is_refused_naming_them(tmp_path):
         read_drive_log(p)
 
 
+@pytest.mark.slow  # reproduces a paper's estimates
 def test_idim_ls_reproduces_the_published_estimates_their_std_and_the_cross_test():
     rows = list(janot2019.idim_rows(idim.emps_table()))
     assert len(rows) == 27

@@ -171,6 +171,7 @@ def test_a_row_equal_to_its_baseline_is_a_tie_and_a_row_above_it_is_worse():
     assert stats.why_not_beats(above, 1.0, 0.0, 0.0, 0.0) == ["worse"]
 
 
+@pytest.mark.slow  # a leaderboard and its figures
 def test_figures_are_drawn_one_at_a_time_each_closed_before_the_next(tmp_path, monkeypatch):
     """The default suite draws 25+ figures; drawing them all before saving any kept them all open
     (matplotlib warned at 20). Each figure is saved and closed before the next is drawn."""
@@ -192,6 +193,7 @@ def test_figures_are_drawn_one_at_a_time_each_closed_before_the_next(tmp_path, m
     assert plt.get_fignums() == []
 
 
+@pytest.mark.slow  # a leaderboard and its figures
 def test_figures_are_scaled_by_the_entries_and_the_response_shows_the_loop_and_ideal(tmp_path, monkeypatch):
     """Doing nothing on the M220's reversals scores g ≈ -20 (the friction penalty is small beside the
     whole error): drawn on the aggregate's axis it would squeeze every entry into one dot near 0-1, so
@@ -227,6 +229,7 @@ def test_figures_are_scaled_by_the_entries_and_the_response_shows_the_loop_and_i
     assert response[0].get_ylabel() == "output (rad)" and response[2].get_ylabel() == "command (V)"
 
 
+@pytest.mark.slow  # a leaderboard and its figures
 def test_the_response_shows_the_best_learned_entry_and_the_page_says_what_it_is(tmp_path, monkeypatch):
     """With a saved model on the board, the response figure draws it (the best learned or plug-in entry)
     beside the best classical result, and the page names the model's design, training scenario and seed

@@ -52,6 +52,7 @@ class Page(HTMLParser):
             self.images.append(a.get("src") or "")
 
 
+@pytest.mark.slow  # a leaderboard and its page
 def test_the_page_is_self_contained_with_sortable_tables_and_marked_references(board_dir):
     """Nothing is fetched (no http(s) or file address; figures are PNG data URIs), every table sorts,
     the question, the aggregates and each scenario have a table, and the reference rows carry class ref
@@ -80,6 +81,7 @@ def _chromium() -> tuple[str, str] | None:
     return None if None in found else found  # type: ignore[return-value]
 
 
+@pytest.mark.slow  # a leaderboard and a browser
 def test_the_page_in_a_real_browser_loads_sorts_and_shows_every_image(board_dir, tmp_path):
     """Headless chromium opens index.html: no console error, every image decoded (naturalWidth > 0) with its
     text at least 9 px at the page's width, the answer first, the units in the headers, a

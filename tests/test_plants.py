@@ -51,6 +51,7 @@ def test_flexible_linearisation_matches_G1_G2():
     _compare(wallenborg1987.frf_linearized(FREQS), G)
 
 
+@pytest.mark.slow  # reproduces a document's frequency responses
 def test_flexible_sine_responses_match_G1_G2():
     f = FREQS[[0, 3, 6]]
     G = np.array(flexible_servo.transfer(plant_spec("flexible_servo"), 2j * np.pi * f)).T
@@ -66,6 +67,7 @@ def test_flexible_transfer_from_parameters_matches_printed_3_5_3_6():
     assert np.abs(G2) == pytest.approx(np.abs(1818 / den), rel=0.02)
 
 
+@pytest.mark.slow  # reproduces a document's bounds
 def test_kang_resolved_gain_reproduces_printed_bounds():
     spec = plant_spec("kang_robot")
     kp_deg = spec.document.kp_nm_per_rad * math.pi / 180

@@ -74,6 +74,7 @@ def test_a_wrong_command_signature_is_named_before_any_episode(plugin, tmp_path,
     assert not (tmp_path / "run" / "episodes.csv").exists()  # no reference episode ran
 
 
+@pytest.mark.slow  # a process pool
 def test_a_nan_command_is_named_with_its_step(plugin, tmp_path, capsys):
     err = leaderboard(capsys, tmp_path / "first", f"{plugin}:NaNs")
     assert "controller NaNs on kang_ramp, seed 5000, step 0: ValueError: actions must be finite" in err
@@ -114,6 +115,7 @@ class Marker(PhysicalController):
 '''
 
 
+@pytest.mark.slow  # four leaderboards
 def test_a_results_folder_runs_no_code_it_names(tmp_path, capsys):
     """--report-from reads run.json as data: a plug-in it names is imported only when the command line
     names it too (--controllers), else the report is refused in one line naming the flag; the same for a

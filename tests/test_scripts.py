@@ -59,6 +59,7 @@ def test_reproduce_writes_passing_report(tmp_path):
     ).stat().st_size > 10_000
 
 
+@pytest.mark.slow  # a benchmark
 def test_bench_physics_prints_a_ratio_per_plant():
     proc = subprocess.run(
         [sys.executable, str(ROOT / "scripts/bench_physics.py"), "--seconds", "0.2"],
@@ -93,6 +94,7 @@ def test_bench_envs_bare_loops_step_the_envs_physics(scenario):
     assert not np.array_equal(data.qpos, mujoco.MjData(env.core.model).qpos)  # not a plant at rest
 
 
+@pytest.mark.slow  # a benchmark
 def test_bench_envs_prints_ratios():
     proc = subprocess.run(
         [
@@ -113,6 +115,7 @@ def test_bench_envs_prints_ratios():
     assert all(0.05 < float(r[-1]) < 2 for r in rows)
 
 
+@pytest.mark.slow  # fresh interpreters
 def test_the_frictiongym_command_is_installed_and_runs_a_front_end(tmp_path):
     """The console script (setup.cfg) runs scripts/reproduce.py's main: its usage names the command and a
     section runs and writes its report, as `python scripts/reproduce.py` does."""

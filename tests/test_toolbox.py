@@ -183,6 +183,7 @@ def test_tuned_twin_uses_its_values_and_only_on_its_plants():
         Tuned("ILC", IterativeLearning, bad)
 
 
+@pytest.mark.slow  # a tuning run
 def test_tuning_improves_on_the_design_on_validation():
     entry = tune(
         "PID+MFF", "kang_robot", budget_s=600, trials=6, seed=0, episodes=2, workers=1, progress=False

@@ -410,6 +410,7 @@ def test_asymmetric_actor_ignores_the_privileged_block(tmp_path):
     assert not np.array_equal(a, model.predict(z, deterministic=True)[0])
 
 
+@pytest.mark.slow  # trains
 @pytest.mark.parametrize("algo", ["SAC", "PPO"])
 def test_an_exported_model_is_the_safe_folder_and_acts_as_the_run_s(tmp_path, algo):
     """export_model copies the run's model folder (manifest, policy.safetensors, records; no checkpoint,
@@ -522,6 +523,7 @@ def test_more_validation_episodes_than_the_suite_holds_is_an_error(tmp_path):
     assert len(TrainingRun(cfg, 0, tmp_path / "run", "pytest", progress=False).episodes) == n
 
 
+@pytest.mark.slow  # trains
 def test_held_out_scenarios_and_suites_are_never_trained_or_selected_on(tmp_path):
     """A generalisation scenario is refused by the config loader (and so by scripts/train.py and the
     sweeps), and model selection refuses a held-out suite; a held-out scenario may not sit in another
@@ -857,6 +859,7 @@ def test_a_hyper_parameter_out_of_its_range_is_refused_when_the_config_is_read(t
     assert e.value.field.endswith(f"hyperparams.{key}")
 
 
+@pytest.mark.slow  # trains
 def test_train_takes_a_step_count_for_a_try(tmp_path, capsys):
     """`frictiongym train --steps N` replaces the config's total_timesteps for every run (a short try
     without writing a config); the manifest records N and the command."""
