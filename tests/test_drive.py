@@ -235,3 +235,50 @@ def test_a_minute_at_the_emps_1_khz_with_its_deadline_misses_reported(lab_pd, tm
     warnings.warn(f"1 kHz virtual drive, 60 s: {json.dumps(figures)}", stacklevel=1)
     assert loop["stop"] is None and loop["periods"] == drive["periods"] == 60000
     assert 0 <= loop["deadline_misses"] < 6000 and drive["missing_commands"] < 6000
+
+
+def test_the_log_is_on_disk_as_the_run_goes_and_an_unwritable_log_fails_before_it(lab_pd, tmp_path):
+    """The drive log is opened (its folder made) before the first period and each row is written as it is
+    run: read while the run goes on, it already holds whole rows; a --log that cannot be written fails at
+    once, before any command, with the drive never told to run."""
+    seen = []
+
+    def peek() -> None:  # the log read from disk mid-run
+        time.sleep(0.5)
+        seen.append((tmp_path / "log.csv").read_text())
+
+    th = threading.Thread(target=peek)
+    th.start()
+    loop, _ = rehearse(lab_pd, tmp_path, 1.0)
+    th.join()
+    rows = [r for r in seen[0].splitlines() if r and not r.startswith(("#", "time_s"))]
+    assert 0 < len(rows) < loop["periods"] and all(len(r.split(",")) == 7 for r in rows)
+    assert loop["log_error"] is None
+    blocked = tmp_path / "file"
+    blocked.write_text("a file where the log's folder would be")
+    with pytest.raises(OSError):
+        run_drive(Runtime.load(lab_pd), ("127.0.0.1", free_port()), ("127.0.0.1", free_port()), 1.0,
+                  blocked / "log.csv")  # fmt: skip
+
+
+def test_a_full_disk_mid_run_stops_it_and_keeps_the_rows_written(lab_pd, tmp_path, monkeypatch):
+    """A write that fails mid-run (ENOSPC) stops the drive (STOP, the supervisor's stop_log) and names the
+    failure; every row written before it stays in the log."""
+    import errno
+
+    from frictiongym.agents.deploy import drive_loop
+
+    calls, real = [], drive_loop.log_row
+
+    def full(row: tuple) -> str:
+        calls.append(row)
+        if len(calls) > 200:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(row)
+
+    monkeypatch.setattr(drive_loop, "log_row", full)
+    loop, drive = rehearse(lab_pd, tmp_path, 1.0)
+    assert loop["stop"] == "stop_log" and "No space left on device" in loop["log_error"]
+    assert loop["events"]["stop_log"] == 1 and drive["periods"] < 1000
+    log = read_drive_log(tmp_path / "log.csv")
+    assert len(log.t) == 200

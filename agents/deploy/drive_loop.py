@@ -32,13 +32,12 @@ import socket
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
 import numpy as np
 
 from frictiongym.agents.deploy.runtime import Runtime
 from frictiongym.envs.drive_protocol import HOLD, RUN, STOP, pack_command, unpack_readings
-from frictiongym.envs.records import atomic_text
 from frictiongym.envs.scenario import Scenario
 
 STARTUP_S = 10.0  # s: the drive's first readings must come within this, or the run stops (watchdog)
@@ -55,6 +54,7 @@ SUPERVISOR_CODES = {
     "stop_divergence": 7,
     "stop_emergency": 8,
     "stop_interrupt": 9,
+    "stop_log": 10,
 }
 
 
@@ -172,14 +172,23 @@ def run_drive(
     steps = round(duration_s / h)
     ref = reference_of(sc, steps)
     sup = Supervisor(Limits.of(sc, ref[: sc.episode_steps], **(limits or {})))
+    stream = open_log(log, sc)  # before the first period: an unwritable --log fails here, in one line
     interrupted = []
     previous = signal.signal(signal.SIGINT, lambda *_: interrupted.append(True)) if _main_thread() else None
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    sock.bind(address)
+    try:
+        sock.bind(address)
+    except OSError:
+        sock.close()
+        stream.close()
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+        raise
     if ready is not None:
         ready.set()
     rows: list[tuple] = []
     compute, stop, last_seen, last_k = [], None, time.perf_counter(), None
+    log_error: OSError | None = None
     runtime.reset()
     try:
         while stop is None:
@@ -220,6 +229,12 @@ def run_drive(
             spent = time.perf_counter() - arrived
             compute.append(spent)
             rows.append((k * h, position, reference, u, SUPERVISOR_CODES[what], spent, r.t))
+            try:  # each row on disk as it is run: a crash or a full disk keeps what ran
+                stream.write(log_row(rows[-1]))
+            except OSError as e:
+                stop = sup.record("stop_log")
+                log_error = e
+                break
             if k == steps - 1:  # the run's last period: done
                 break
     finally:
@@ -227,7 +242,10 @@ def run_drive(
         sock.close()
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
-        _write_log(log, sc, rows)
+        try:
+            stream.close()
+        except OSError as e:  # the last rows could not be flushed
+            log_error = e
     c = np.asarray(compute) if compute else np.zeros(1)
     return {
         "periods": len(rows),
@@ -240,6 +258,7 @@ def run_drive(
         },
         "deadline_misses": int(np.sum(c > 0.5 * h)),
         "log": str(log),
+        "log_error": None if log_error is None else f"{log_error.strerror or log_error}: {log}",
     }
 
 
@@ -249,9 +268,11 @@ def _main_thread() -> bool:
     return threading.current_thread() is threading.main_thread()
 
 
-def _write_log(path: Path, sc: Scenario, rows: list[tuple]) -> None:
-    """The run as a drive log of the schema (an encoder's position in m or rad; a tachometer's reading is
-    logged as the position column's signal in V, for the record)."""
+def open_log(path: Path, sc: Scenario) -> TextIO:
+    """The run's drive log (the schema: an encoder's position in m or rad; a tachometer's reading is
+    logged as the position column's signal in V, for the record), opened and its header written before
+    the first period; rows follow one whole line at a time, each flushed as it is written (line
+    buffering). An OSError here is the caller's one line: nothing has been commanded yet."""
     sensor = sc.spec.sensors[sc.tracked_sensor]
     unit = sc.spec.joint_unit(sensor.joint)  # the tracked joint's position unit
     gain = {"m": "drive_gain_n_per_v", "rad": "drive_gain_nm_per_v"}[unit]
@@ -259,8 +280,14 @@ def _write_log(path: Path, sc: Scenario, rows: list[tuple]) -> None:
         f"# frictiongym run-drive: {sc.name}, control period {sc.control_period} s, tracked {sensor.kind}",
         f"# supervisor codes: {SUPERVISOR_CODES}",
         f"# {gain} = {sc.spec.actuator_gain!r}",
+        f"time_s,position_{unit},reference_{unit},command_V,supervisor,compute_s,drive_time_s",
     ]
-    cols = f"time_s,position_{unit},reference_{unit},command_V,supervisor,compute_s,drive_time_s"
-    body = [",".join(repr(float(x)) if i != 4 else str(x) for i, x in enumerate(r)) for r in rows]
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_text(path, "\n".join([*head, cols, *body]) + "\n")
+    stream = open(path, "w", buffering=1)  # noqa: SIM115  (closed by run_drive's finally)
+    stream.write("\n".join(head) + "\n")
+    return stream
+
+
+def log_row(row: tuple) -> str:
+    """One logged period as its CSV line (floats as repr: read back exactly)."""
+    return ",".join(repr(float(x)) if i != 4 else str(x) for i, x in enumerate(row)) + "\n"
