@@ -80,8 +80,12 @@ def _corrupt(line: str, field: str, value: str) -> str:
         (lambda ls: [*ls[:2], _corrupt(ls[2], "seed", "9999"), *ls[3:]], "not an episode of this run"),
         (lambda ls: [*ls[:2], ls[2].rsplit(",", 3)[0] + "\n", *ls[3:]], "fields where the header has"),
         (lambda ls: [*ls[:2], _corrupt(ls[2], "diverged", "maybe"), *ls[3:]], "must be True or False"),
-        (lambda ls: [*ls[:2], _corrupt(ls[2], "seed", "11.5"), *ls[3:]], "invalid literal for int"),
-        (lambda ls: [*ls[:2], "\x00\xff garbage \x01\n", *ls[3:]], "fields where the header has"),
+        (lambda ls: [*ls[:2], _corrupt(ls[2], "seed", "11.5"), *ls[3:]], "'seed' must be a non-negative"),
+        (lambda ls: [*ls[:2], "\x00\xff garbage \x01\n", *ls[3:]], "binary data (a NUL byte)"),
+        (lambda ls: [*ls[:2], _corrupt(ls[2], "ise", "inf"), *ls[3:]], "'ise' must be a number or nan"),
+        (lambda ls: [*ls[:2], _corrupt(ls[2], "params", "x" * 200_000), *ls[3:]], "a line of 20"),
+        (lambda ls: [*ls[:2], '"unclosed, quote' + ls[2][15:], *ls[3:]], "fields where the header has"),
+        (lambda ls: [*ls[:2], _corrupt(ls[2], "controller", ""), *ls[3:]], "'controller' is empty"),
     ],
 )
 def test_a_resumed_row_that_cannot_be_reused_is_named_and_rerun(serial, tmp_path, capsys, corrupt, why):
@@ -199,3 +203,33 @@ def test_sigkill_then_resume_gives_the_clean_runs_file(tmp_path):
         )
         assert run.returncode == 0, run.stderr
     assert (killed / "episodes.csv").read_bytes() == (clean / "episodes.csv").read_bytes()
+
+
+@pytest.mark.parametrize(
+    ("text", "why"),
+    [
+        ("{not json", "not JSON (JSONDecodeError)"),
+        ("[1, 2]", "expected a mapping of exactly episodes, controllers and models"),
+        ('{"episodes": [], "controllers": [], "models": []}', "episodes must be a non-empty list"),
+        ('{"episodes": [{"scenario": "kang_ramp", "seed": 1, "randomize": true, "params": [], "x": 1}], '
+         '"controllers": ["PD"], "models": []}', "episodes[0] is not"),
+        ('{"episodes": [{"scenario": "kang_ramp", "seed": "1", "randomize": true, "params": []}], '
+         '"controllers": ["PD"], "models": []}', "episodes[0] is not"),
+        ('{"episodes": [{"scenario": "kang_ramp", "seed": 1, "randomize": true, "params": []}], '
+         '"controllers": [["PD"]], "models": []}', "controllers must be a list of names"),
+        ("[" * 100_000, "not JSON"),
+    ],
+)
+def test_a_run_json_that_is_not_one_is_named_in_one_line(tmp_path, capsys, text, why):
+    """--report-from reads run.json by schema before using anything in it: bad JSON, another shape, an
+    episode with another key or type end in one line naming the file (exit 2), nothing written."""
+    from frictiongym.scripts import cli
+
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "run.json").write_text(text)
+    (run / "episodes.csv").write_text(",".join(engine.FIELDS) + "\n")
+    assert cli.main(["leaderboard", "--report-from", str(run), "--models", "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and err.startswith(f"error: {run / 'run.json'}: ") and why in err, err
+    assert not (tmp_path / "r").exists()

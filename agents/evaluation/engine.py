@@ -331,24 +331,48 @@ def csv_fields(r: EpisodeResult) -> dict[str, Any]:
     return {k: repr(v) if isinstance(v, float) else v for k, v in values.items()}
 
 
+MAX_ROW_BYTES = 64 * 1024  # a row is a few hundred bytes; one longer than this is junk, not a result
+
+
 def _flag(text: str, field_name: str) -> bool:
     if text not in ("True", "False"):
-        raise ValueError(f"episodes.csv field {field_name!r} must be True or False, got {text!r}")
+        raise ValueError(f"field {field_name!r} must be True or False, got {text[:40]!r}")
     return text == "True"
 
 
+def _number(row: dict[str, str], key: str, nan_ok: bool = True) -> float:
+    """A float field: finite, or NaN where `nan_ok` (an undefined metric, an unscored row: written as nan
+    or, by earlier versions, empty); never ±inf, which no metric or score takes."""
+    text = row[key]
+    try:
+        x = float(text or "nan")
+    except ValueError:
+        raise ValueError(f"field {key!r} is not a number: {text[:40]!r}") from None
+    if math.isinf(x) or (math.isnan(x) and not nan_ok):
+        want = "a number or nan" if nan_ok else "finite"
+        raise ValueError(f"field {key!r} must be {want}, got {text[:40]!r}")
+    return x
+
+
 def parse_row(row: dict[str, str]) -> EpisodeResult:
-    """The result an episodes.csv row holds: the one reader of the file's rows (csv_fields inverted)."""
+    """The result an episodes.csv row holds: the one reader of the file's rows (csv_fields inverted), every
+    field checked (the names non-empty, the seed a non-negative integer, the flags True or False, numbers
+    finite or an undefined nan, the return finite); a ValueError names the field."""
+    for key in ("controller", "scenario", "env_id"):
+        if not row[key]:
+            raise ValueError(f"field {key!r} is empty")
+    if not row["seed"].isdigit():
+        raise ValueError(f"field 'seed' must be a non-negative integer, got {row['seed'][:40]!r}")
     return EpisodeResult(
         controller=row["controller"],
         scenario=row["scenario"],
         seed=int(row["seed"]),
-        metrics={m: float(row[m]) for m in METRIC_NAMES},
-        episode_return=float(row["return"]),
+        metrics={m: _number(row, m) for m in METRIC_NAMES},
+        episode_return=_number(row, "return", nan_ok=False),
         diverged=_flag(row["diverged"], "diverged"),
-        score=float(row["score"] or "nan"),  # empty in unscored rows written by earlier versions (a run
-        g=float(row["g"] or "nan"),  # resumed across the change); written as nan now
-        g_tracking=float(row["g_tracking"] or "nan"),
+        score=_number(row, "score"),
+        g=_number(row, "g"),
+        g_tracking=_number(row, "g_tracking"),
         randomize=_flag(row["randomize"], "randomize"),
         params=row["params"],
         controller_params=row["controller_params"],
@@ -368,23 +392,41 @@ def _csv_text(results: Iterable[EpisodeResult], header: bool = False) -> str:
 
 def read_rows(path: Path) -> tuple[list[tuple[int, EpisodeResult]], list[tuple[int, str]]]:
     """episodes.csv's rows as (line, result), and the (line, why) of those that are not a result (a short
-    or long row, a value that does not parse); a last line without its newline is a torn write and not
-    read. Reads only."""
+    or long row, binary junk, an oversized line, a value that does not parse or check); a last line
+    without its newline is a torn write and not read. Each line is read on its own (a row never holds a
+    newline), so no line can stop the reading of the others. Reads only."""
     if not path.exists():
         return [], []
-    text = path.read_bytes().decode("utf-8", errors="replace")
-    if not text.endswith("\n"):
-        text = text[: text.rfind("\n") + 1]
-    reader = csv.DictReader(io.StringIO(text))
+    data = path.read_bytes()
+    data = data[: data.rfind(b"\n") + 1]  # a torn last line is not read
+    lines = data.split(b"\n")[:-1]
+    if not lines:
+        return [], []
+    header = lines[0].decode("utf-8", errors="replace").split(",")
+    if header != list(FIELDS):
+        return [], [(1, f"the header is not episodes.csv's ({len(header)} columns)")]
     rows, refused = [], []
-    for r in reader:
-        if None in r or len(r) != len(FIELDS) or None in r.values():
-            refused.append((reader.line_num, f"{len(r)} fields where the header has {len(FIELDS)}"))
-            continue
-        try:
-            rows.append((reader.line_num, parse_row(r)))
-        except (ValueError, KeyError) as e:
-            refused.append((reader.line_num, str(e).split("\n")[0]))
+    for number, raw in enumerate(lines[1:], start=2):
+        why = None
+        if len(raw) > MAX_ROW_BYTES:
+            why = f"a line of {len(raw)} bytes (a row is at most {MAX_ROW_BYTES})"
+        elif b"\x00" in raw:
+            why = "binary data (a NUL byte)"
+        else:
+            try:
+                [values] = csv.reader([raw.decode("utf-8")])
+            except (UnicodeDecodeError, csv.Error, ValueError) as e:
+                why = f"not a CSV row of text ({type(e).__name__})"
+            else:
+                if len(values) != len(FIELDS):
+                    why = f"{len(values)} fields where the header has {len(FIELDS)}"
+                else:
+                    try:
+                        rows.append((number, parse_row(dict(zip(FIELDS, values, strict=True)))))
+                    except ValueError as e:
+                        why = str(e).split("\n")[0]
+        if why is not None:
+            refused.append((number, why))
     return rows, refused
 
 
@@ -498,6 +540,54 @@ def evaluate_to(
     return store.finish(jobs, scoring(episodes)), skipped
 
 
+MAX_RUN_JSON_BYTES = 64 * 1024 * 1024  # the largest suite's run.json is a few hundred kB
+
+
+def _pinned(kv: Any) -> bool:
+    """A pinned parameter as run.json holds it: [name, number or structure name]."""
+    return (
+        isinstance(kv, list) and len(kv) == 2 and isinstance(kv[0], str) and type(kv[1]) in (int, float, str)
+    )
+
+
+def read_run_json(path: Path) -> dict[str, Any]:
+    """A leaderboard run's run.json, checked before use: a mapping of its episodes (each a scenario name,
+    a non-negative integer seed, a randomize flag and pinned parameters as [name, value] pairs), its
+    controllers' names and its model sources (strings: data, resolved only where the command line allows
+    them). Any other shape is one ValueError naming the file and what is wrong."""
+
+    def bad(what: str) -> ValueError:
+        return ValueError(f"{path}: {what}; not a leaderboard run's run.json")
+
+    if path.stat().st_size > MAX_RUN_JSON_BYTES:
+        raise bad(f"{path.stat().st_size} bytes")
+    try:
+        options = json.loads(path.read_bytes().decode("utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
+        raise bad(f"not JSON ({type(e).__name__})") from None
+    if not isinstance(options, dict) or set(options) != {"episodes", "controllers", "models"}:
+        raise bad("expected a mapping of exactly episodes, controllers and models")
+    for key in ("controllers", "models"):
+        if not isinstance(options[key], list) or not all(isinstance(x, str) and x for x in options[key]):
+            raise bad(f"{key} must be a list of names")
+    if not isinstance(options["episodes"], list) or not options["episodes"]:
+        raise bad("episodes must be a non-empty list")
+    for i, e in enumerate(options["episodes"]):
+        ok = (
+            isinstance(e, dict)
+            and set(e) == {"scenario", "seed", "randomize", "params"}
+            and isinstance(e["scenario"], str)
+            and type(e["seed"]) is int
+            and e["seed"] >= 0
+            and isinstance(e["randomize"], bool)
+            and isinstance(e["params"], list)
+            and all(_pinned(kv) for kv in e["params"])
+        )
+        if not ok:
+            raise bad(f"episodes[{i}] is not a scenario, seed, randomize flag and pinned parameters")
+    return options
+
+
 def finished_run(
     src: Path, allowed: tuple[str, ...] = ()
 ) -> tuple[dict[str, Any], list[EpisodeResult], list[Job], list[tuple[str, str, str]]]:
@@ -508,7 +598,7 @@ def finished_run(
     run, path = src / "run.json", src / "episodes.csv"
     if not run.is_file() or not path.is_file():
         raise RunMismatch(f"{src} holds no finished run (run.json and episodes.csv)")
-    options = json.loads(run.read_text())
+    options = read_run_json(run)
     episodes = [Episode.from_dict(e) for e in options["episodes"]]
     models = registry.allowed_sources(tuple(options["models"]), allowed, str(run))
     jobs, skipped = plan(options["controllers"], episodes, models)
