@@ -5,6 +5,7 @@ emergency stop, Ctrl-C) and logs it; the protocol refuses malformed datagrams.""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -225,12 +226,21 @@ def test_ctrl_c_stops_the_command_line_loop_cleanly(lab_pd, tmp_path):
 
 @pytest.mark.slow
 def test_a_minute_at_the_emps_1_khz_with_its_deadline_misses_reported(lab_pd, tmp_path):
-    """A minute of real time at the EMPS's 1 kHz, beside the test suite's other worker: the run lasts the
-    minute (a silence of up to 1 s tolerated, stop_after_s, on a shared machine), and its timing is
+    """A minute of real time at the EMPS's 1 kHz, beside the test suite's other worker, run as a drive's
+    loop should be, above the machine's other work (nice -10 where allowed: docs/deploy.md): the run lasts
+    the minute (a silence of up to 1 s tolerated, stop_after_s, on a shared machine), and its timing is
     reported in the test output's warnings (deadline misses, commands missing at the drive, the ticks'
-    lateness). Alone on this VM: 9 misses and 0.28 % of the commands missing; beside the suite's other
-    worker: 24 and 2.1 %. The bound here is 10 %: a loop that loses more is broken, not loaded."""
-    loop, drive = rehearse(lab_pd, tmp_path, 60.0, limits={"stop_after_s": 1.0})
+    lateness). Alone on this VM: 17 misses and 0.12 % of the commands missing; at normal priority beside
+    two busy processes 10-13 % went missing, at nice -10 1.7 %. The bound here is 10 %."""
+    before = os.getpriority(os.PRIO_PROCESS, 0)
+    # as a drive's loop runs: above the machine's other work (root or CAP_SYS_NICE; else as it is); the
+    # loop's thread and the virtual drive's are made after, with this priority
+    with contextlib.suppress(PermissionError):
+        os.setpriority(os.PRIO_PROCESS, 0, -10)
+    try:
+        loop, drive = rehearse(lab_pd, tmp_path, 60.0, limits={"stop_after_s": 1.0})
+    finally:
+        os.setpriority(os.PRIO_PROCESS, 0, before)
     figures = {"loop": loop, "drive": {k: v for k, v in drive.items() if k not in ("output", "command")}}
     warnings.warn(f"1 kHz virtual drive, 60 s: {json.dumps(figures)}", stacklevel=1)
     assert loop["stop"] is None and loop["periods"] == drive["periods"] == 60000
