@@ -73,15 +73,18 @@ def serve(
     if ready is not None:
         ready.set()
     steps = round(duration_s / h)
-    u, missing, late, stopped = 0.0, 0, 0, False
+    u, missing, late, stopped, rejected = 0.0, 0, 0, False, 0
     lateness, output, applied = np.zeros(steps), np.zeros(steps), np.zeros(steps)
     k = 0
     try:
-        if not select.select([sock], [], [], STARTUP_S)[
-            0
-        ]:  # the controller's first datagram starts the clock
-            raise TimeoutError(f"no controller datagram within {STARTUP_S} s on {address}")
-        sock.recvfrom(64)
+        deadline = time.perf_counter() + STARTUP_S
+        while True:  # the controller's first datagram starts the clock; another sender's is ignored
+            left = deadline - time.perf_counter()
+            if left <= 0 or not select.select([sock], [], [], left)[0]:
+                raise TimeoutError(f"no controller datagram within {STARTUP_S} s on {address}")
+            if sock.recvfrom(64)[1] == controller:
+                break
+            rejected += 1
         t0 = time.perf_counter()
         for k in range(steps):
             tick = t0 + k * h
@@ -98,10 +101,15 @@ def serve(
             while answer is None and (left := tick + h - time.perf_counter()) > 0:
                 if not select.select([sock], [], [], left)[0]:
                     break
-                data, _ = sock.recvfrom(64)
+                data, sender = sock.recvfrom(64)
                 try:
+                    if sender != controller:  # only the controller it was given commands it
+                        raise ValueError(f"a datagram from {sender}, not the controller {controller}")
                     cmd = unpack_command(data)
+                    if not math.isfinite(cmd.value):
+                        raise ValueError("a command that is not finite")
                 except ValueError:
+                    rejected += 1
                     continue
                 if cmd.flags == STOP:
                     stopped = True
@@ -118,9 +126,9 @@ def serve(
                 u = 0.0 if answer.flags == HOLD else answer.value
             if faults.runaway_at_s is not None and k * h >= faults.runaway_at_s:
                 u = scale
-            a = u / scale
-            obs, _, term, trunc, info = env.step(np.array([a if math.isfinite(a) else 0.0], np.float32))
-            output[k], applied[k] = info["output"], min(max(a, -1.0), 1.0) * scale
+            a = min(max(u / scale, -1.0), 1.0)  # the amplifier's range: any finite command is applied clipped
+            obs, _, term, trunc, info = env.step(np.array([a], np.float32))
+            output[k], applied[k] = info["output"], a * scale
             if term or trunc:
                 break
     finally:
@@ -132,6 +140,7 @@ def serve(
         "stopped_by_controller": stopped,
         "missing_commands": missing,
         "late_commands": late,
+        "rejected_datagrams": rejected,
         "tick_lateness_s": {
             "median": float(np.median(run)),
             "p99": float(np.percentile(run, 99)),

@@ -30,6 +30,21 @@ def address(text: str) -> tuple[str, int]:
         raise argparse.ArgumentTypeError(f"expected HOST:PORT, got {text!r}") from None
 
 
+def loopback_only(ap: argparse.ArgumentParser, network: bool, **addresses: tuple[str, int]) -> None:
+    """Refuse (one line naming the option) an address off this machine unless --network says so: the
+    protocol carries no authentication (docs/deploy.md says what a real network needs)."""
+    import ipaddress
+    import socket
+
+    for option, (host, _) in addresses.items():
+        try:
+            ip = ipaddress.ip_address(socket.gethostbyname(host))
+        except (OSError, ValueError):
+            ap.error(f"--{option}: cannot resolve {host!r}")
+        if not ip.is_loopback and not network:
+            ap.error(f"--{option} {host} is not this machine's loopback: pass --network to allow it")
+
+
 def limit(text: str) -> tuple[str, float]:
     name, _, value = text.partition("=")
     try:
@@ -55,7 +70,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--backend", choices=("numpy", "onnxruntime"), default="numpy", help="how a network is evaluated"
     )
+    ap.add_argument(
+        "--network", action="store_true", help="allow addresses off this machine (unauthenticated protocol)"
+    )
     args = ap.parse_args(argv)
+    loopback_only(ap, args.network, drive=args.drive, listen=args.listen)
     from frictiongym.agents.deploy.drive_loop import Limits, run_drive  # the controllers: after --help
     from frictiongym.agents.deploy.runtime import Runtime  # the controllers: after --help
 

@@ -14,7 +14,7 @@ import json
 import sys
 
 from frictiongym.scripts.options import parser, scenario_name
-from frictiongym.scripts.run_drive import address
+from frictiongym.scripts.run_drive import address, loopback_only
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -37,7 +37,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--freeze-at-s", type=float, help="the drive stops sending from this time (s)")
     ap.add_argument("--runaway-at-s", type=float, help="full positive command from this time (s)")
     ap.add_argument("--seed", type=int, default=0, help="the episode's seed (its plant and noise)")
+    ap.add_argument(
+        "--network", action="store_true", help="allow addresses off this machine (unauthenticated protocol)"
+    )
     args = ap.parse_args(argv)
+    loopback_only(ap, args.network, listen=args.listen, controller=args.controller)
     from frictiongym.envs.virtual_drive import Faults, serve  # start-up cost: --help imports no MuJoCo
 
     faults = Faults(args.loss, args.late_s, args.freeze_at_s, args.runaway_at_s)

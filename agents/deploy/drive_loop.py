@@ -37,7 +37,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from frictiongym.agents.deploy.runtime import Runtime
-from frictiongym.envs.drive_protocol import HOLD, RUN, STOP, pack_command, unpack_readings
+from frictiongym.envs.drive_protocol import HOLD, RUN, STOP, Readings, pack_command, unpack_readings
 from frictiongym.envs.scenario import Scenario
 
 STARTUP_S = 10.0  # s: the drive's first readings must come within this, or the run stops (watchdog)
@@ -55,7 +55,13 @@ SUPERVISOR_CODES = {
     "stop_emergency": 8,
     "stop_interrupt": 9,
     "stop_log": 10,
+    "stop_reading": 11,
 }
+# Datagrams the loop refuses, counted in the run's figures (`rejected`) and each written to the log's
+# sidecar (<log>.rejected.csv): from another peer than the drive it was given, malformed (length, magic,
+# sensor count), a replay (a sequence number not above the last accepted) or a jump (more periods ahead
+# than the watchdog lets pass). None of them feeds the watchdog or steps the controller.
+REJECTIONS = ("peer", "malformed", "replay", "jump")
 
 
 @dataclass(frozen=True)
@@ -170,6 +176,7 @@ def run_drive(
     sc = runtime.scenario
     h = sc.control_period
     steps = round(duration_s / h)
+    drive = (socket.gethostbyname(drive[0]), drive[1])  # compared with each datagram's sender
     ref = reference_of(sc, steps)
     sup = Supervisor(Limits.of(sc, ref[: sc.episode_steps], **(limits or {})))
     stream = open_log(log, sc)  # before the first period: an unwritable --log fails here, in one line
@@ -189,6 +196,9 @@ def run_drive(
     rows: list[tuple] = []
     compute, stop, last_seen, last_k = [], None, time.perf_counter(), None
     log_error: OSError | None = None
+    started, rejected = time.perf_counter(), dict.fromkeys(REJECTIONS, 0)
+    gap = math.ceil(sup.limits.stop_after_s / h) + 1  # periods a lost stretch may skip before the watchdog
+    rejects = RejectLog(log.with_suffix(".rejected.csv"))
     runtime.reset()
     try:
         while stop is None:
@@ -208,12 +218,17 @@ def run_drive(
                         sup.record("hold")
                 continue
             data, sender = sock.recvfrom(2048)
-            arrived = last_seen = time.perf_counter()
-            try:
-                r = unpack_readings(data)
-            except ValueError:
+            arrived = time.perf_counter()
+            r, why = accept(data, sender, drive, len(sc.spec.sensors), last_k, gap, steps)
+            if why is not None:
+                rejected[why] += 1
+                rejects.write(f"{arrived - started!r},{sender[0]}:{sender[1]},{why},{len(data)}\n")
                 continue
+            last_seen = arrived  # only a valid reading from the drive feeds the watchdog
             k = r.seq
+            if not all(map(math.isfinite, r.values)):  # any sensor: a drive that reads nonsense
+                stop = sup.record("stop_reading")
+                break
             position = r.values[sc.tracked_sensor]
             reference = float(ref[k])
             what = sup.check(position, reference, (k - last_k) * h if last_k is not None else h)
@@ -246,6 +261,7 @@ def run_drive(
             stream.close()
         except OSError as e:  # the last rows could not be flushed
             log_error = e
+        rejects.close()
     c = np.asarray(compute) if compute else np.zeros(1)
     return {
         "periods": len(rows),
@@ -259,7 +275,49 @@ def run_drive(
         "deadline_misses": int(np.sum(c > 0.5 * h)),
         "log": str(log),
         "log_error": None if log_error is None else f"{log_error.strerror or log_error}: {log}",
+        "rejected": {k: v for k, v in rejected.items() if v},
     }
+
+
+def accept(
+    data: bytes, sender: tuple, drive: tuple, sensors: int, last: int | None, gap: int, steps: int
+) -> tuple[Readings | None, str | None]:
+    """(the readings, None) for a datagram the loop takes, else (None, why: one of REJECTIONS): from the
+    drive's address and port, well formed with one value per sensor, and its sequence number strictly
+    above the last accepted one and at most `gap` periods ahead (the first: within the first `gap`), and
+    inside the run (below `steps`)."""
+    if sender[:2] != drive[:2]:
+        return None, "peer"
+    try:
+        r = unpack_readings(data)
+    except ValueError:
+        return None, "malformed"
+    if len(r.values) != sensors or not math.isfinite(r.t):
+        return None, "malformed"
+    floor = -1 if last is None else last
+    if r.seq <= floor:
+        return None, "replay"
+    if r.seq > floor + gap or r.seq >= steps:
+        return None, "jump"
+    return r, None
+
+
+class RejectLog:
+    """The sidecar of refused datagrams (time since the start in s, the sender, why, its size in bytes),
+    created at the first one and flushed line by line."""
+
+    def __init__(self, path: Path):
+        self.path, self.stream = path, None
+
+    def write(self, line: str) -> None:
+        if self.stream is None:
+            self.stream = open(self.path, "w", buffering=1)  # noqa: SIM115  (closed by close())
+            self.stream.write("time_s,sender,why,bytes\n")
+        self.stream.write(line)
+
+    def close(self) -> None:
+        if self.stream is not None:
+            self.stream.close()
 
 
 def _main_thread() -> bool:
