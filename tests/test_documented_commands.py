@@ -107,3 +107,18 @@ def test_the_readme_answer_tables_are_the_committed_test_runs():
     assert [p for p, _ in tables] == ["kang_robot", "m220", "flexible_servo", "emps"]
     for plant, table in tables:
         assert table in readme, plant
+
+
+@pytest.mark.slow  # a fresh interpreter
+def test_the_readme_python_example_runs_and_prints_units(tmp_path):
+    """The README's Python block runs as written and prints its numbers with their units."""
+    import subprocess
+    import sys
+
+    [code] = re.findall(r"^```python\n(.*?)^```$", (ROOT / "README.md").read_text(), re.S | re.M)
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.strip().splitlines()
+    assert len(lines) == 2 and all(" mrad, command " in x and x.endswith(" V rms") for x in lines), lines
