@@ -11,19 +11,38 @@ Imported at training time only: stable-baselines3 is the rl extra.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, Protocol
 
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 
 if TYPE_CHECKING:
-    from .run import TrainingRun
+    from .config import RunConfig
+    from .validation import Snapshot
+
+
+class RunHooks(Protocol):
+    """What the callbacks use of a run (run.TrainingRun, which imports this module: typed by what it
+    does, so the room reads one way)."""
+
+    cfg: RunConfig
+    logger: Any
+    next_eval: int
+    last_snapshot: Snapshot | None
+    stop_after_train_s: float | None
+    stopped_early: bool
+
+    def collect(self, block: bool) -> None: ...
+    def validate(self, model: Any) -> Snapshot: ...
+    def checkpoint(self, model: Any, snap: Snapshot) -> None: ...
+    def elapsed(self) -> float: ...
+    def train_s(self) -> float: ...
 
 
 class Validation(BaseCallback):
     """Starts an evaluation of the model every `eval_every_steps` (at most one runs beside training: the
     previous one is collected first), then calls `callback_after_eval`."""
 
-    def __init__(self, run: TrainingRun, callback_after_eval: BaseCallback | None = None):
+    def __init__(self, run: RunHooks, callback_after_eval: BaseCallback | None = None):
         super().__init__()
         self.run, self.callback = run, callback_after_eval
 
@@ -48,7 +67,7 @@ class Validation(BaseCallback):
 class Checkpoint(BaseCallback):
     """The model just validated (the run's last snapshot) and the run's state into out/checkpoint."""
 
-    def __init__(self, run: TrainingRun):
+    def __init__(self, run: RunHooks):
         super().__init__()
         self.run = run
 
@@ -61,7 +80,7 @@ class WallTimeStop(BaseCallback):
     """False (stop) once the run's wall time passes max_wall_time_s, or its training time (waits for
     validation excluded) passes stop_after_train_s; the run records that it stopped early."""
 
-    def __init__(self, run: TrainingRun):
+    def __init__(self, run: RunHooks):
         super().__init__()
         self.run = run
 
@@ -74,6 +93,6 @@ class WallTimeStop(BaseCallback):
         return True
 
 
-def callbacks(run: TrainingRun) -> CallbackList:
+def callbacks(run: RunHooks) -> CallbackList:
     """Validation (then a checkpoint), then the wall-time stop: the order the run's steps need."""
     return CallbackList([Validation(run, callback_after_eval=Checkpoint(run)), WallTimeStop(run)])
