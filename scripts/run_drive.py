@@ -73,6 +73,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--network", action="store_true", help="allow addresses off this machine (unauthenticated protocol)"
     )
+    ap.add_argument(
+        "--seed", type=int, default=0, help="the episode whose reference a random-reference scenario tracks"
+    )
     args = ap.parse_args(argv)
     loopback_only(ap, args.network, drive=args.drive, listen=args.listen)
     from frictiongym.agents.deploy.drive_loop import Limits, run_drive  # the controllers: after --help
@@ -84,7 +87,10 @@ def main(argv: list[str] | None = None) -> int:
     try:
         runtime = Runtime.load(args.artefact, args.backend)
         limits = {n: (int(v) if n == "divergence_periods" else v) for n, v in args.limit}
-        out = run_drive(runtime, args.listen, args.drive, args.duration_s, args.log, limits, args.estop_file)
+        out = run_drive(
+            runtime, args.listen, args.drive, args.duration_s, args.log, limits, args.estop_file,
+            seed=args.seed,
+        )  # fmt: skip
     except (ValueError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -395,3 +395,19 @@ def test_junk_from_another_peer_feeds_no_watchdog(lab_pd, tmp_path):
         th.join(30)
     assert loop["stop"] == "stop_watchdog" and loop["rejected"].get("peer", 0) >= 1
     assert time.perf_counter() - t0 < 0.3 + 1.0  # the freeze, the watchdog's 0.1 s, slack for the machine
+
+
+def test_the_drive_side_reference_is_the_env_s_also_where_it_is_drawn_per_episode():
+    """reference_of gives the controller side the reference the env's episode tracks: for a reference
+    drawn per episode (type random), episode `seed`'s (such scenarios could not be run on a drive at all:
+    it raised)."""
+    from frictiongym.agents import registry
+    from frictiongym.agents.deploy.drive_loop import reference_of
+    from frictiongym.agents.evaluation.evaluate import run_episode
+    from frictiongym.envs.suites import Episode
+
+    for name, seed in (("m220_random", 0), ("m220_random", 7), ("m220_reversal_tracking", 3)):
+        sc = load_scenario(name)
+        logged = run_episode(registry.make("PID"), Episode(name, seed, False), keep_log=True).log["reference"]
+        n = sc.episode_steps  # the log's last sample is the episode's end, where the drive side repeats it
+        np.testing.assert_array_equal(reference_of(sc, n, seed)[:n], logged[:n])

@@ -150,10 +150,13 @@ class Supervisor:
         return what
 
 
-def reference_of(sc: Scenario, steps: int) -> np.ndarray:
-    """The scenario's reference r(t_k) for k < steps, its episode repeated (the controller side's)."""
+def reference_of(sc: Scenario, steps: int, seed: int = 0) -> np.ndarray:
+    """The scenario's reference r(t_k) for k < steps, its episode repeated (the controller side's); a
+    reference drawn per episode (type random) is episode `seed`'s, as the env draws it."""
     n = sc.episode_steps + sc.preview_steps + 1
-    one = np.asarray(sc.reference(np.arange(n) * sc.control_period), dtype=float)
+    t = np.arange(n) * sc.control_period
+    drawn = sc.reference.episode(seed, t)[0] if sc.reference.per_episode else sc.reference(t)
+    one = np.asarray(drawn, dtype=float)
     reps = math.ceil((steps + sc.preview_steps + 1) / sc.episode_steps) + 1
     return np.tile(one[: sc.episode_steps], reps)
 
@@ -167,17 +170,19 @@ def run_drive(
     limits: dict[str, Any] | None = None,
     estop_file: Path | None = None,
     ready: Any = None,
+    seed: int = 0,
 ) -> dict[str, Any]:
     """Close the loop for duration_s (drive periods) or until the supervisor stops it; writes the log (the
     drive-log schema) and returns the run's figures: periods, the supervisor's events, the stop and why,
     the compute time (median, 99th percentile, max) and deadline misses (answers later than half a
     period after their readings arrived). Ctrl-C (SIGINT) stops it cleanly: STOP sent, the log written.
-    `ready`, if given, is set once the socket is bound."""
+    `ready`, if given, is set once the socket is bound. `seed`: the episode whose reference a scenario
+    that draws one per episode tracks (reference_of)."""
     sc = runtime.scenario
     h = sc.control_period
     steps = round(duration_s / h)
     drive = (socket.gethostbyname(drive[0]), drive[1])  # compared with each datagram's sender
-    ref = reference_of(sc, steps)
+    ref = reference_of(sc, steps, seed)
     sup = Supervisor(Limits.of(sc, ref[: sc.episode_steps], **(limits or {})))
     stream = open_log(log, sc)  # before the first period: an unwritable --log fails here, in one line
     interrupted = []
