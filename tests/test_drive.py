@@ -62,13 +62,18 @@ def lab_pd(tmp_path_factory) -> Path:
 
 
 def rehearse(
-    art: Path, tmp_path: Path, duration_s: float, faults: Faults | None = None, **kw
+    art: Path,
+    tmp_path: Path,
+    duration_s: float,
+    faults: Faults | None = None,
+    scenario: str = "emps_tracking",
+    **kw,
 ) -> tuple[dict, dict]:
     """The loop against a virtual drive in a thread, both run as a drive's loop should be, above the
     machine's other work (nice -10 where allowed: root or CAP_SYS_NICE; else as they are; docs/deploy.md);
     (the loop's figures, the drive's)."""
     with realtime_priority():
-        return _rehearse(art, tmp_path, duration_s, faults, **kw)
+        return _rehearse(art, tmp_path, duration_s, faults, scenario, **kw)
 
 
 @contextlib.contextmanager
@@ -84,13 +89,18 @@ def realtime_priority():
 
 
 def _rehearse(
-    art: Path, tmp_path: Path, duration_s: float, faults: Faults | None = None, **kw
+    art: Path,
+    tmp_path: Path,
+    duration_s: float,
+    faults: Faults | None = None,
+    scenario: str = "emps_tracking",
+    **kw,
 ) -> tuple[dict, dict]:
     drive, ctrl = ("127.0.0.1", free_port()), ("127.0.0.1", free_port())
     ready, out = threading.Event(), {}
     faults = faults or Faults()
     th = threading.Thread(
-        target=lambda: out.update(serve("emps_tracking", drive, ctrl, duration_s, faults, ready=ready))
+        target=lambda: out.update(serve(scenario, drive, ctrl, duration_s, faults, ready=ready))
     )
     th.start()
     ready.wait(10)
@@ -411,3 +421,42 @@ def test_the_drive_side_reference_is_the_env_s_also_where_it_is_drawn_per_episod
         logged = run_episode(registry.make("PID"), Episode(name, seed, False), keep_log=True).log["reference"]
         n = sc.episode_steps  # the log's last sample is the episode's end, where the drive side repeats it
         np.testing.assert_array_equal(reference_of(sc, n, seed)[:n], logged[:n])
+
+
+@pytest.mark.slow  # every scenario's nominal episodes under three loops
+def test_the_supervisor_s_defaults_let_every_scenario_s_nominal_episodes_run():
+    """Offline, from the env's trajectories: the supervisor's default checks (Limits.of) stop none of the
+    40 scenarios' nominal episodes under its uncompensated loop and the model feed-forward designs (PID+MFF,
+    Cascade+MFF) where they apply; before, they stopped nominal PID on m220_regulation at its first period
+    and every tachometer-tracked scenario at its second. The faults they stop are the tests above."""
+    from frictiongym.agents import registry
+    from frictiongym.agents.deploy.drive_loop import reference_of
+    from frictiongym.agents.evaluation.evaluate import run_episode
+    from frictiongym.envs.config import scenario_names
+    from frictiongym.envs.suites import Episode
+
+    stops, runs = [], 0
+    for name in scenario_names():
+        sc = load_scenario(name)
+        ref = reference_of(sc, sc.episode_steps, 0)[: sc.episode_steps]
+        for design in (sc.uncompensated, "PID+MFF", "Cascade+MFF"):
+            controller = registry.make(design)
+            if controller.why_not(sc) is not None:
+                continue
+            log = run_episode(controller, Episode(name, 0, False), keep_log=True).log
+            sup, runs = Supervisor(Limits.of(sc, ref)), runs + 1
+            for k in range(sc.episode_steps):
+                what = sup.check(float(log["output"][k]), float(log["reference"][k]), sc.control_period)
+                if what != "ok":
+                    stops.append(f"{name} under {design}: {what} at period {k}")
+                    break
+    assert runs >= 80 and not stops, stops
+
+
+@pytest.mark.parametrize(("scenario", "design"), [("m220_regulation", "PID"), ("flexible_zero_speed", "PID")])
+def test_a_set_point_and_a_tachometer_loop_run_through_on_the_virtual_drive(tmp_path, scenario, design):
+    """The two runs the old defaults stopped at once (issue 67): a second on the virtual drive completes."""
+    art = export(design, tmp_path / "art", scenario)
+    loop, drive = rehearse(art, tmp_path, 1.0, scenario=scenario)
+    h = load_scenario(scenario).control_period
+    assert loop["stop"] is None and loop["periods"] == drive["periods"] == round(1.0 / h), loop

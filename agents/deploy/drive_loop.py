@@ -80,24 +80,45 @@ class Limits:
 
     @classmethod
     def of(cls, sc: Scenario, reference: np.ndarray, **overrides: Any) -> Limits:
-        """Defaults from the scenario: the command range, half the full range's change per period, the
-        reference's span widened by half the output scale, three times the reference's fastest speed
-        plus the output scale per second, an error of the output scale for 0.1 s, a watchdog of 5
-        periods and a stop after 0.1 s without readings; keyword arguments override them."""
+        """Defaults from the scenario, so that its nominal episodes run through under its loops
+        (tests/test_drive.py checks all of them offline): the command range and half the full range's
+        change per period; a window of the reference's span and every reading the scenario may start
+        from (its initial-state range), widened by its reach (the output scale plus the way three times
+        the reference's fastest speed goes in 0.1 s); three times that speed plus the start's distance to
+        the reference and the output scale covered in 0.1 s, for a position sensor (a tachometer's
+        reading is a speed: its window is its limit); an error above the reach held for 0.1 s without
+        closing by a tenth; a watchdog of 5 periods and a stop after 0.1 s without readings; keyword
+        arguments override them."""
         h, s = sc.control_period, sc.output_scale
         speed = float(np.max(np.abs(np.diff(reference)))) / h if len(reference) > 1 else 0.0
+        lo, hi = start_readings(sc)
+        offset = max(abs(lo - reference[0]), abs(hi - reference[0])) if len(reference) else 0.0
+        position = sc.spec.sensors[sc.tracked_sensor].kind == "encoder"
+        reach = s + 0.1 * 3 * speed  # the output scale and the way 3x the reference speed goes in 0.1 s
         out = {
             "command_limit": sc.action_scale,
             "rate_limit": sc.action_scale,
-            "position_min": float(reference.min()) - 0.5 * s,
-            "position_max": float(reference.max()) + 0.5 * s,
-            "velocity_limit": 3 * speed + s,
-            "divergence_error": s,
+            "position_min": min(float(reference.min()), lo) - reach,
+            "position_max": max(float(reference.max()), hi) + reach,
+            "velocity_limit": 3 * speed + (offset + s) / 0.1 if position else math.inf,
+            "divergence_error": reach,
             "divergence_periods": max(1, round(0.1 / h)),
             "watchdog_s": 5 * h,
             "stop_after_s": max(0.1, 10 * h),
         }
         return cls(**{**out, **overrides})
+
+
+def start_readings(sc: Scenario) -> tuple[float, float]:
+    """The lowest and highest tracked reading the scenario's episodes may start from (its initial-state
+    range of the tracked joint; a tachometer reads its speed times its gain; mirrored where the start's
+    sign is drawn)."""
+    sensor = sc.spec.sensors[sc.tracked_sensor]
+    j = min(sc.spec.joint_index(sensor.joint), len(sc.qpos_range) - 1)  # one row for belted joints
+    lo, hi = (sc.qpos_range[j] if sensor.kind == "encoder" else sc.qvel_range[j] * sensor.gain).tolist()
+    if sc.random_sign:
+        lo, hi = min(lo, -hi), max(hi, -lo)
+    return float(lo), float(hi)
 
 
 @dataclass
@@ -108,7 +129,8 @@ class Supervisor:
     limits: Limits
     last_position: float | None = None
     last_command: float = 0.0
-    diverging: int = 0
+    diverging: int = 0  # periods the error has been above divergence_error
+    streak_error: float = 0.0  # the error when it went above
     emergency: bool = False
     events: dict[str, int] = field(default_factory=lambda: dict.fromkeys(SUPERVISOR_CODES, 0))
 
@@ -128,9 +150,17 @@ class Supervisor:
         ):
             return "stop_velocity"
         self.last_position = position
-        self.diverging = self.diverging + 1 if abs(reference - position) > lim.divergence_error else 0
-        if self.diverging >= lim.divergence_periods:
-            return "stop_divergence"
+        error = abs(reference - position)
+        if error <= lim.divergence_error:
+            self.diverging = 0
+        else:
+            if self.diverging == 0:
+                self.streak_error = error
+            self.diverging += 1
+            if self.diverging >= lim.divergence_periods:
+                if error > 0.9 * self.streak_error:  # held, not closing: a drive that does not follow
+                    return "stop_divergence"
+                self.diverging = 0  # closing (a loop catching up after a jump of the reference): go on
         return "ok"
 
     def limit(self, command: float) -> tuple[float, str]:
