@@ -206,6 +206,9 @@ def controller_factory(spec: str) -> Callable[[], Controller]:
                 loader.loader.exec_module(module)
         else:
             module = importlib.import_module(module_name)
+    except (ImportError, AttributeError, OSError, ValueError, SyntaxError) as e:  # the module's own import
+        raise ValueError(f"controller {spec!r}: {type(e).__name__}: {e}") from None
+    try:
         factory = getattr(module, attr)
     except AttributeError:
         own = sorted(
@@ -215,8 +218,6 @@ def controller_factory(spec: str) -> Callable[[], Controller]:
         )
         has = f"its controllers: {', '.join(own)}" if own else "it defines no Controller subclass"
         raise ValueError(f"controller {spec!r}: {module_name} has no {attr!r}; {has}") from None
-    except (ImportError, OSError, ValueError, SyntaxError) as e:
-        raise ValueError(f"controller {spec!r}: {type(e).__name__}: {e}") from None
     try:
         made = factory() if callable(factory) else factory
     except Exception as e:  # the user's code: whatever it raises is named, on one line
