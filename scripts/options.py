@@ -15,7 +15,8 @@ class Formatter(argparse.RawDescriptionHelpFormatter, argparse.ArgumentDefaultsH
 
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""
-        if "default" in text or action.default in (None, False, [], argparse.SUPPRESS):
+        none = action.default is None or action.default is False or action.default == []
+        if "default" in text or none or action.default is argparse.SUPPRESS:
             return text
         return super()._get_help_string(action) or ""
 
@@ -52,6 +53,48 @@ def add_backend_arguments(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1, help="processes (default: all cores)")
     ap.add_argument("--backend", choices=["local", "ray"], default="local", help="process pool or Ray tasks")
     ap.add_argument("--address", help="Ray cluster to join (default: a local Ray on --workers CPUs)")
+
+
+def address(text: str) -> tuple[str, int]:
+    """'HOST:PORT' (argparse type; HOST defaults to the loopback) -> (host, port)."""
+    host, _, port = text.rpartition(":")
+    try:
+        return host or "127.0.0.1", int(port)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected HOST:PORT, got {text!r}") from None
+
+
+def add_address(ap: argparse.ArgumentParser, flag: str, default: tuple[str, int], what: str) -> None:
+    """A HOST:PORT option of the drive commands, its default shown as it is typed."""
+    ap.add_argument(
+        flag,
+        type=address,
+        default=default,
+        metavar="HOST:PORT",
+        help=f"{what} (default: {default[0]}:{default[1]})",
+    )
+
+
+def add_network_option(ap: argparse.ArgumentParser) -> None:
+    """--network, which loopback_only reads."""
+    ap.add_argument(
+        "--network", action="store_true", help="allow addresses off this machine (unauthenticated protocol)"
+    )
+
+
+def loopback_only(ap: argparse.ArgumentParser, network: bool, **addresses: tuple[str, int]) -> None:
+    """Refuse (one line naming the option) an address off this machine unless --network says so: the
+    drive protocol carries no authentication (docs/deploy.md says what a real network needs)."""
+    import ipaddress
+    import socket
+
+    for option, (host, _) in addresses.items():
+        try:
+            ip = ipaddress.ip_address(socket.gethostbyname(host))
+        except (OSError, ValueError):
+            ap.error(f"--{option}: cannot resolve {host!r}")
+        if not ip.is_loopback and not network:
+            ap.error(f"--{option} {host} is not this machine's loopback: pass --network to allow it")
 
 
 def backend_of(args: Any, ap: argparse.ArgumentParser) -> Any:

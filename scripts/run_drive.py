@@ -19,30 +19,7 @@ import json
 import sys
 from pathlib import Path
 
-from frictiongym.scripts.options import parser
-
-
-def address(text: str) -> tuple[str, int]:
-    host, _, port = text.rpartition(":")
-    try:
-        return host or "127.0.0.1", int(port)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected HOST:PORT, got {text!r}") from None
-
-
-def loopback_only(ap: argparse.ArgumentParser, network: bool, **addresses: tuple[str, int]) -> None:
-    """Refuse (one line naming the option) an address off this machine unless --network says so: the
-    protocol carries no authentication (docs/deploy.md says what a real network needs)."""
-    import ipaddress
-    import socket
-
-    for option, (host, _) in addresses.items():
-        try:
-            ip = ipaddress.ip_address(socket.gethostbyname(host))
-        except (OSError, ValueError):
-            ap.error(f"--{option}: cannot resolve {host!r}")
-        if not ip.is_loopback and not network:
-            ap.error(f"--{option} {host} is not this machine's loopback: pass --network to allow it")
+from frictiongym.scripts.options import add_address, add_network_option, address, loopback_only, parser
 
 
 def limit(text: str) -> tuple[str, float]:
@@ -56,13 +33,8 @@ def limit(text: str) -> tuple[str, float]:
 def main(argv: list[str] | None = None) -> int:
     ap = parser(__doc__)
     ap.add_argument("artefact", type=Path, help="a folder frictiongym export wrote")
-    ap.add_argument("--drive", type=address, required=True, help="the drive's HOST:PORT")
-    ap.add_argument(
-        "--listen",
-        type=address,
-        default=("127.0.0.1", 47002),
-        help="this side's HOST:PORT (default: 127.0.0.1:47002)",
-    )
+    ap.add_argument("--drive", type=address, required=True, metavar="HOST:PORT", help="the drive's address")
+    add_address(ap, "--listen", ("127.0.0.1", 47002), "this side's address")
     ap.add_argument("--duration-s", type=float, default=10.0, help="how long the loop runs (s)")
     ap.add_argument("--log", type=Path, default=Path("out/drive/log.csv"), help="the drive log (CSV)")
     ap.add_argument("--estop-file", type=Path, help="a file whose appearance stops the run at once")
@@ -70,9 +42,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--backend", choices=("numpy", "onnxruntime"), default="numpy", help="how a network is evaluated"
     )
-    ap.add_argument(
-        "--network", action="store_true", help="allow addresses off this machine (unauthenticated protocol)"
-    )
+    add_network_option(ap)
     ap.add_argument(
         "--seed", type=int, default=0, help="the episode whose reference a random-reference scenario tracks"
     )

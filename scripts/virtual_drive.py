@@ -13,8 +13,7 @@ from __future__ import annotations
 import json
 import sys
 
-from frictiongym.scripts.options import parser, scenario_name
-from frictiongym.scripts.run_drive import address, loopback_only
+from frictiongym.scripts.options import add_address, add_network_option, loopback_only, parser, scenario_name
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -22,24 +21,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument(
         "--scenario", required=True, type=scenario_name, metavar="SCENARIO", help="the plant's scenario"
     )
-    ap.add_argument(
-        "--listen", type=address, default=("127.0.0.1", 47001), help="HOST:PORT (default: 127.0.0.1:47001)"
-    )
-    ap.add_argument(
-        "--controller",
-        type=address,
-        default=("127.0.0.1", 47002),
-        help="run-drive's HOST:PORT (default: 127.0.0.1:47002)",
-    )
+    add_address(ap, "--listen", ("127.0.0.1", 47001), "this drive's address")
+    add_address(ap, "--controller", ("127.0.0.1", 47002), "run-drive's address")
     ap.add_argument("--duration-s", type=float, default=10.0, help="how long it serves (s)")
     ap.add_argument("--loss", type=float, default=0.0, help="probability a readings datagram is lost")
     ap.add_argument("--late-s", type=float, default=0.0, help="readings sent this late in their period (s)")
     ap.add_argument("--freeze-at-s", type=float, help="the drive stops sending from this time (s)")
     ap.add_argument("--runaway-at-s", type=float, help="full positive command from this time (s)")
     ap.add_argument("--seed", type=int, default=0, help="the episode's seed (its plant and noise)")
-    ap.add_argument(
-        "--network", action="store_true", help="allow addresses off this machine (unauthenticated protocol)"
-    )
+    add_network_option(ap)
     args = ap.parse_args(argv)
     loopback_only(ap, args.network, listen=args.listen, controller=args.controller)
     from frictiongym.envs.virtual_drive import Faults, serve  # start-up cost: --help imports no MuJoCo

@@ -71,9 +71,11 @@ def test_every_option_has_help(command: str, monkeypatch: pytest.MonkeyPatch) ->
 def test_help_shows_defaults() -> None:
     ap = cli.importlib.import_module("frictiongym.scripts.options").parser("doc")
     ap.add_argument("--seconds", type=float, default=4.0, help="measuring time")
+    ap.add_argument("--seed", type=int, default=0, help="the seed")
     ap.add_argument("--out", default="out/x", help="the folder (default: out/x)")
     text = " ".join(ap.format_help().split())
     assert "measuring time (default: 4.0)" in text
+    assert "the seed (default: 0)" in text  # a zero is a default to show (0 == False, but not False)
     assert "(default: out/x) (default" not in text  # a help that names its default is not repeated
 
 

@@ -61,21 +61,6 @@ def lab_pd(tmp_path_factory) -> Path:
     return export("LabPD", tmp_path_factory.mktemp("art") / "labpd", "emps_tracking")
 
 
-def rehearse(
-    art: Path,
-    tmp_path: Path,
-    duration_s: float,
-    faults: Faults | None = None,
-    scenario: str = "emps_tracking",
-    **kw,
-) -> tuple[dict, dict]:
-    """The loop against a virtual drive in a thread, both run as a drive's loop should be, above the
-    machine's other work (nice -10 where allowed: root or CAP_SYS_NICE; else as they are; docs/deploy.md);
-    (the loop's figures, the drive's)."""
-    with realtime_priority():
-        return _rehearse(art, tmp_path, duration_s, faults, scenario, **kw)
-
-
 @contextlib.contextmanager
 def realtime_priority():
     """This thread at nice -10 where allowed (threads it starts inherit it), back to its own after."""
@@ -88,7 +73,8 @@ def realtime_priority():
         os.setpriority(os.PRIO_PROCESS, 0, before)
 
 
-def _rehearse(
+@realtime_priority()
+def rehearse(
     art: Path,
     tmp_path: Path,
     duration_s: float,
@@ -96,6 +82,9 @@ def _rehearse(
     scenario: str = "emps_tracking",
     **kw,
 ) -> tuple[dict, dict]:
+    """The loop against a virtual drive in a thread, both run as a drive's loop should be, above the
+    machine's other work (nice -10 where allowed: root or CAP_SYS_NICE; else as they are; docs/deploy.md);
+    (the loop's figures, the drive's)."""
     drive, ctrl = ("127.0.0.1", free_port()), ("127.0.0.1", free_port())
     ready, out = threading.Event(), {}
     faults = faults or Faults()
