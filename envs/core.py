@@ -306,7 +306,7 @@ class ServoCore:
             raise RuntimeError("the episode has ended (truncated or diverged): call reset() first")
         x = float(action)
         if not math.isfinite(x):
-            raise ValueError(f"actions must be finite, got {action}")
+            raise ActionError(f"actions must be finite, got {action}")
         sc = self.sc
         a = x if -1.0 <= x <= 1.0 else (1.0 if x > 0.0 else -1.0)  # the clip, as the vector path's
         command = a * sc.action_scale
@@ -533,18 +533,23 @@ def render_frame(renderer: mujoco.Renderer, data: mujoco.MjData) -> np.ndarray:
     return renderer.render()
 
 
+class ActionError(ValueError):
+    """An action that is not one finite real per env (check_action, the single env's step): its own type,
+    so that an evaluation loop can tell the controller's mistake from any other error of a step."""
+
+
 def check_action(action: object, n: int) -> np.ndarray:
     """(n,) float actions from one finite real scalar per env: shapes (), (1,) for n = 1, or (n,), (n, 1).
     Anything else (strings, bytes, complex, bool, empty, other shapes, NaN) is a clear error."""
     a = np.asarray(action)
     if a.dtype.kind not in "fiu":
-        raise ValueError(f"actions must be real numbers, got dtype {a.dtype} ({action!r:.80})")
+        raise ActionError(f"actions must be real numbers, got dtype {a.dtype} ({action!r:.80})")
     if a.size != n or a.shape not in ((n,), (n, 1)) + (((),) if n == 1 else ()):
         want = "a scalar, (1,) or (1, 1)" if n == 1 else f"({n},) or ({n}, 1)"
-        raise ValueError(f"expected one action per env, shape {want}; got shape {a.shape}")
+        raise ActionError(f"expected one action per env, shape {want}; got shape {a.shape}")
     a = a.astype(float).reshape(n)
     if not np.isfinite(a).all():
-        raise ValueError(f"actions must be finite, got {a}")
+        raise ActionError(f"actions must be finite, got {a}")
     return a
 
 

@@ -155,3 +155,20 @@ def test_a_results_folder_runs_no_code_it_names(tmp_path, capsys):
         == 2
     )
     assert f"names the model folder '{folder}': pass --models {folder}" in capsys.readouterr().err
+
+
+def test_an_action_of_the_wrong_shape_is_named_like_a_nan(tmp_path, capsys):
+    """Every refusal of the env's action check (envs.core.ActionError), not only a NaN, is the
+    controller's mistake named with its scenario, seed and step."""
+    shape = tmp_path / "shape.py"
+    shape.write_text(
+        "from frictiongym.agents.base import PhysicalController\n\n\n"
+        "class Shape(PhysicalController):\n"
+        "    name = 'Shape'\n\n"
+        "    def act(self, obs):  # two actions where the env takes one\n"
+        "        return [0.0, 0.0]\n\n"
+        "    def command(self, y, r):\n"
+        "        return 0.0\n"
+    )
+    err = leaderboard(capsys, tmp_path / "run", f"{shape}:Shape")
+    assert "controller Shape on kang_ramp, seed 5000, step 0: ValueError: expected one action per env" in err

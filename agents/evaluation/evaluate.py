@@ -13,7 +13,7 @@ from tqdm import tqdm
 from frictiongym.agents.base import Controller, EpisodeContext
 from frictiongym.agents.settings import knowledge_defaults
 from frictiongym.envs import env_id
-from frictiongym.envs.core import ServoCore, check_action, check_options
+from frictiongym.envs.core import ActionError, ServoCore, check_action, check_options
 from frictiongym.envs.plants import PlantSpec
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.servo_env import ServoEnv
@@ -202,13 +202,13 @@ def controller_error(
 
 
 def _bad_rows(actions: np.ndarray | list, live: np.ndarray) -> list[int]:
-    """The rows of `live` whose action is not one finite real (all of them if that cannot be told)."""
+    """The rows of `live` whose action check_action refuses (all of them if none alone is refused: the
+    lockstep's whole array was the wrong shape)."""
     bad = []
     for i, u in zip(live, actions, strict=False):
         try:
-            if not np.isfinite(np.asarray(u, dtype=float)).all() or np.size(u) != 1:
-                bad.append(int(i))
-        except (TypeError, ValueError):
+            check_action(u, 1)
+        except ActionError:
             bad.append(int(i))
     return bad or [int(i) for i in live]
 
@@ -278,11 +278,10 @@ def _run_together(
                 a = lockstep_actions(actions, len(live))
                 o, r, term, trunc, info = core.step(a, live)
                 ended, flags = term | trunc, info["diverged"]
-        except ValueError as e:  # check_action's: the action is not one finite real
-            if not str(e).startswith("action"):
-                raise
+        except ActionError as e:  # the action is not one finite real
             seeds = [episodes[i].seed for i in _bad_rows(actions, live)]
-            raise controller_error(controller, sc.name, seeds, k, e) from e
+            # named as the ValueError (ActionError's base) any caller of an env's step sees
+            raise controller_error(controller, sc.name, seeds, k, ValueError(str(e))) from e
         k += 1
         obs[live] = o
         totals[live] += r
