@@ -228,7 +228,7 @@ def run_drive(
         raise
     if ready is not None:
         ready.set()
-    rows: list[tuple] = []
+    periods = 0  # the periods run (each a row of the log, written as it is run)
     compute, stop, last_seen, last_k = [], None, time.perf_counter(), None
     log_error: OSError | None = None
     started, rejected = time.perf_counter(), dict.fromkeys(REJECTIONS, 0)
@@ -242,14 +242,14 @@ def run_drive(
                 break
             if estop_file is not None and estop_file.exists():
                 sup.emergency_stop()
-            wait = sup.limits.watchdog_s if rows else HELLO_S
+            wait = sup.limits.watchdog_s if periods else HELLO_S
             if not select.select([sock], [], [], wait)[0]:
                 silent = time.perf_counter() - last_seen
-                if silent >= (sup.limits.stop_after_s if rows else STARTUP_S):
+                if silent >= (sup.limits.stop_after_s if periods else STARTUP_S):
                     stop = sup.record("stop_watchdog")
                 else:  # HOLD: the drive holds zero (and, before its first readings, learns we are here)
                     sock.sendto(pack_command(0, time.perf_counter(), HOLD, 0.0), drive)
-                    if rows:
+                    if periods:
                         sup.record("hold")
                 continue
             data, sender = sock.recvfrom(2048)
@@ -278,9 +278,9 @@ def run_drive(
                 sock.sendto(pack_command(k, time.perf_counter(), RUN, u), sender)
             spent = time.perf_counter() - arrived
             compute.append(spent)
-            rows.append((k * h, position, reference, u, SUPERVISOR_CODES[what], spent, r.t))
+            periods += 1
             try:  # each row on disk as it is run: a crash or a full disk keeps what ran
-                stream.write(log_row(rows[-1]))
+                stream.write(log_row((k * h, position, reference, u, SUPERVISOR_CODES[what], spent, r.t)))
             except OSError as e:
                 stop = sup.record("stop_log")
                 log_error = e
@@ -299,7 +299,7 @@ def run_drive(
         rejects.close()
     c = np.asarray(compute) if compute else np.zeros(1)
     return {
-        "periods": len(rows),
+        "periods": periods,
         "stop": stop,
         "events": {k: v for k, v in sup.events.items() if v},
         "compute_s": {
