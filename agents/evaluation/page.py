@@ -163,7 +163,7 @@ def page(
     board: Board,
     figures: dict[str, bytes],
     provenance: dict[str, str],
-    text_px: dict[str, float] | None = None,
+    text_px: dict[str, float],
 ) -> str:
     """index.html's text: the board's tables (sortable), the figures (name: PNG bytes) embedded at their
     natural width (each with data-text-px, its smallest text's height in px there: figures.smallest_text_px),
@@ -195,7 +195,7 @@ def page(
     parts.append("<h2 id='figures'>Figures</h2>")
     for name, png in figures.items():
         data = base64.b64encode(compact_png(png)).decode("ascii")
-        px = (text_px or {}).get(name, math.nan)
+        px = text_px[name]
         parts.append(
             f"<h3>{_e(name)}</h3><img alt='{_e(name)}' data-text-px='{_num(px)}' "
             f"src='data:image/png;base64,{data}'>"

@@ -235,16 +235,14 @@ def headline(board: Board) -> list[tuple[str, str, list[str]]]:
         else:
             verdict = f"a learned or plug-in entry beats the best classical on {len(won)} of {len(judged)}"
             verdict += " scenarios"
-        unit = {
-            r["name"]: board.scenarios[r["name"]].metric_unit(board.scenarios[r["name"]].main_metric)
-            for r in won
-        }
-        lines = [
-            f"{r['name']} ({board.scenarios[r['name']].main_metric} in {unit[r['name']]}): "
-            f"{r['best']['controller']} {_fmt(r['best']['main'])} against "
-            f"{r['baseline']['controller']} {_fmt(r['baseline']['main'])}"
-            for r in won
-        ]
+        lines = []
+        for r in won:
+            main = board.scenarios[r["name"]].main_metric
+            lines.append(
+                f"{r['name']} ({main} in {board.scenarios[r['name']].metric_unit(main)}): "
+                f"{r['best']['controller']} {_fmt(r['best']['main'])} against "
+                f"{r['baseline']['controller']} {_fmt(r['baseline']['main'])}"
+            )
         out.append((plant, verdict, lines))
     return out
 
