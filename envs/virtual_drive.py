@@ -103,12 +103,11 @@ def serve(
                     break
                 data, sender = sock.recvfrom(64)
                 try:
-                    if sender != controller:  # only the controller it was given commands it
-                        raise ValueError(f"a datagram from {sender}, not the controller {controller}")
                     cmd = unpack_command(data)
-                    if not math.isfinite(cmd.value):
-                        raise ValueError("a command that is not finite")
                 except ValueError:
+                    cmd = None
+                # only the controller it was given commands it, with a finite command
+                if sender != controller or cmd is None or not math.isfinite(cmd.value):
                     rejected += 1
                     continue
                 if cmd.flags == STOP:
