@@ -20,22 +20,82 @@ from typing import Any
 import numpy as np
 import yaml
 
+# Bounds on any YAML file the suite reads (configs, a model's manifest, an export's runtime.yaml): a file a
+# user is handed is input, and YAML lets a kilobyte expand to gigabytes through aliases or nest until the
+# parser's recursion fails. The largest committed file (configs/tuned.yaml) is 48 kB, 12 levels deep,
+# about 16,000 values expanded.
+MAX_YAML_BYTES = 1 << 20  # a file's size, bytes
+MAX_YAML_DEPTH = 64  # nested sequences and mappings
+MAX_YAML_VALUES = 200_000  # values (scalars, sequences, mappings) with every alias expanded
+
 
 class _Loader(yaml.SafeLoader):
-    """SafeLoader that also reads 1e5 / 1.0e5 as floats (YAML 1.2; PyYAML's 1.1 rules need 1.0e+5) and
-    refuses a key given twice in one mapping (PyYAML keeps the last one silently)."""
+    """SafeLoader that also reads 1e5 / 1.0e5 as floats (YAML 1.2; PyYAML's 1.1 rules need 1.0e+5),
+    refuses a key given twice in one mapping (PyYAML keeps the last one silently) or a key that is not a
+    plain value (`? [1, 2]`), and keeps to MAX_YAML_DEPTH and MAX_YAML_VALUES (checked on the composed
+    document, before anything is constructed)."""
+
+    def compose_node(self, parent: Any, index: Any) -> Any:
+        self._depth = getattr(self, "_depth", 0) + 1
+        if self._depth > MAX_YAML_DEPTH:
+            raise yaml.composer.ComposerError(
+                None, None, f"nested deeper than {MAX_YAML_DEPTH} levels", self.peek_event().start_mark
+            )
+        try:
+            return super().compose_node(parent, index)
+        finally:
+            self._depth -= 1
+
+    def get_single_node(self) -> Any:
+        node = super().get_single_node()
+        if node is not None and _expanded_size(node) > MAX_YAML_VALUES:
+            raise yaml.composer.ComposerError(
+                None,
+                None,
+                f"more than {MAX_YAML_VALUES} values once its aliases are expanded",
+                node.start_mark,
+            )
+        return node
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
         seen: dict[Any, int] = {}
         for key_node, _ in node.value:
             if key_node.tag == "tag:yaml.org,2002:merge":  # `<<:` merge keys may repeat inherited keys
                 continue
+            if not isinstance(key_node, yaml.ScalarNode):
+                raise yaml.constructor.ConstructorError(
+                    None,
+                    None,
+                    "a mapping key must be a plain value, not a list or mapping",
+                    key_node.start_mark,
+                )
             key = self.construct_object(key_node, deep=True)
             line = key_node.start_mark.line + 1
             if key in seen:
                 raise _DuplicateKey(str(key), line, seen[key])
             seen[key] = line
         return super().construct_mapping(node, deep)
+
+
+def _expanded_size(root: yaml.Node) -> int:
+    """How many values a composed YAML node stands for with every alias expanded (an alias is the same
+    node object as its anchor: each node's size is counted once, iteratively, so no recursion)."""
+    size: dict[int, int] = {}
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    while stack:
+        node, children_done = stack.pop()
+        if id(node) in size:
+            continue
+        if isinstance(node, yaml.ScalarNode):
+            size[id(node)] = 1
+            continue
+        kids = [x for pair in node.value for x in pair] if isinstance(node, yaml.MappingNode) else node.value
+        if children_done:
+            size[id(node)] = min(1 + sum(size[id(k)] for k in kids), MAX_YAML_VALUES + 1)
+        else:
+            stack.append((node, True))
+            stack.extend((k, False) for k in kids if id(k) not in size)
+    return size[id(root)]
 
 
 class _DuplicateKey(Exception):
@@ -51,11 +111,22 @@ _Loader.add_implicit_resolver(
 )
 
 
+def one_line(text: Any, limit: int) -> str:
+    """text on one line (control characters escaped) and at most `limit` characters: an error message
+    quotes values from files a user was handed, which may hold anything."""
+    text = str(text)
+    if text.isprintable() and len(text) <= limit:
+        return text
+    text = "".join(c if c.isprintable() else repr(c)[1:-1] for c in text[: 4 * limit])
+    return text if len(text) <= limit else f"{text[: limit - 1]}…"
+
+
 class ConfigError(ValueError):
     """A configuration or parameter value is invalid; the message names the field (and the file, when the
     value came from one) and the allowed range."""
 
     def __init__(self, field: str, message: str, source: str = ""):
+        field, message, source = one_line(field, 200), one_line(message, 500), one_line(source, 300)
         self.field, self.message, self.source = field, message, source
         super().__init__(f"{source}: {field}: {message}" if source else f"{field}: {message}")
 
@@ -105,8 +176,16 @@ def load_yaml(name_or_path: str | Path, kind: str = "plants") -> dict[str, Any]:
     mapping) is a ConfigError naming the file, the line and, where there is one, the key."""
     path = preset_path(name_or_path, kind)
     try:
-        text = path.read_text(encoding="utf-8")
+        with path.open("rb") as f:
+            raw = f.read(MAX_YAML_BYTES + 1)
+        if len(raw) > MAX_YAML_BYTES:
+            raise ConfigError(
+                "(file)", f"larger than {MAX_YAML_BYTES} bytes: not a file the suite writes", str(path)
+            )
+        text = raw.decode("utf-8")
         data = copy.deepcopy(_parse(text))  # a copy: callers may edit what they are given
+    except OSError as e:
+        raise ConfigError("(file)", f"cannot be read: {e.strerror or e}", str(path)) from None
     except UnicodeDecodeError as e:
         why = f"not UTF-8 text (byte {e.start}): is it a YAML file?"
         raise ConfigError("(file)", why, str(path)) from None

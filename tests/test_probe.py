@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import frictiongym.envs
-from frictiongym.envs.config import ConfigError, load_yaml
+from frictiongym.envs.config import ConfigError, Node, load_yaml
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.servo_env import ServoEnv
 from frictiongym.envs.vector import ServoVectorEnv, make_sb3_vec_env
@@ -24,6 +24,18 @@ YAML_FAULTS = {
     ),
     "nested duplicate": ("x:\n  y: 1\n  y: 2\n", r"y: line 3: key given twice"),
     "not a mapping": ("- 1\n- 2\n", r"expected a YAML mapping"),
+    "complex key": ("a: 1\n? [1, 2]\n: 3\n", r"line 2, column 3: a mapping key must be a plain value"),
+    # 5,000 nested brackets would end in the parser's RecursionError
+    "deep nesting": ("x: " + "[" * 5000 + "]" * 5000 + "\n", r"line 1, column 67: nested deeper than 64"),
+    # a kilobyte of aliases that expands to 10^10 values (the "billion laughs")
+    "alias bomb": (
+        "a: &a [lol, lol, lol, lol, lol, lol, lol, lol, lol, lol]\n"
+        + "".join(
+            f"{c}: &{c} [{', '.join(['*' + p] * 10)}]\n"
+            for p, c in zip("abcdefghi", "bcdefghij", strict=True)
+        ),
+        r"more than 200000 values once its aliases are expanded",
+    ),
 }
 
 
@@ -35,6 +47,22 @@ def test_every_yaml_problem_is_a_config_error_naming_file_and_line(tmp_path, fau
     with pytest.raises(ConfigError, match=pattern) as e:
         load_yaml(path)
     assert str(path) in str(e.value)
+
+
+def test_a_refusal_is_one_bounded_line_whatever_the_file_holds(tmp_path):
+    """An error quotes what it refuses: a 100 kB key with newlines in it is quoted on one line, cut."""
+    path = tmp_path / "bad.yaml"
+    path.write_text('"' + "x\\n" * 50_000 + '": 1\n')
+    with pytest.raises(ConfigError) as e:
+        Node(load_yaml(path), str(path)).done()
+    assert "\n" not in str(e.value) and len(str(e.value)) < 1100 and str(path) in str(e.value)
+
+
+def test_a_file_over_the_size_bound_is_refused_unread(tmp_path):
+    path = tmp_path / "big.yaml"
+    path.write_text("a: " + "1" * (1 << 20) + "\n")
+    with pytest.raises(ConfigError, match=r"big.yaml: \(file\): larger than 1048576 bytes"):
+        load_yaml(path)
 
 
 def test_a_binary_file_is_a_config_error(tmp_path):
