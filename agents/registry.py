@@ -17,6 +17,8 @@ alike, so worker processes build the same controllers by name.
                     alpha: 0.05             # ...with this authority (default 1)
                     inputs: {history: 0, privileged: false, base_action: true}   # optional
                     ...                     # anything else (training record) is kept, not read here
+    SHA256SUMS:     every file of the folder, the manifest included, with its SHA-256 (the seal:
+                    learned.folder.read_sealed; any changed byte anywhere refuses the folder)
 """
 
 from __future__ import annotations
@@ -26,13 +28,13 @@ import hashlib
 import importlib
 import importlib.util
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from functools import cache, partial
 from importlib.metadata import entry_points
 from pathlib import Path
 
 from frictiongym.agents.evaluation.limits import Ideal, Oracle, TrackingLimit
-from frictiongym.agents.learned.folder import read_policy
+from frictiongym.agents.learned.folder import read_policy, read_sealed
 from frictiongym.agents.learned.manifest import MANIFEST, Manifest
 from frictiongym.agents.learned.policy import LearnedPolicy, policy_why_not
 from frictiongym.agents.tuning.tuned import SUFFIX, Tuned, tunable, tuned_entries
@@ -308,24 +310,40 @@ def model_dirs(paths: Sequence[str | Path]) -> list[Path]:
             found = [p]
         else:
             found = sorted(d for d in p.iterdir() if (d / MANIFEST).is_file()) if p.is_dir() else []
+            if links := [d.name for d in found if d.is_symlink()]:
+                raise ValueError(
+                    f"--models {p}: {links} are links: a collection holds its model folders itself"
+                )
         if not found:
             raise ValueError(f"--models {p}: no {MANIFEST} there or in its sub-folders")
         out += found
     return out
 
 
-def model_factory(folder: Path) -> tuple[str, Callable[[], Controller]]:
-    """(name, factory) of a saved model's folder, checked against its manifest and its files read now
-    (learned.folder.read_policy: a changed or malformed file fails here, before any episode runs); each
-    controller the factory makes shares the one immutable network."""
-    m = Manifest.read(folder)
+def model_factory(
+    folder: Path, files: Mapping[str, bytes] | None = None
+) -> tuple[str, Callable[[], Controller]]:
+    """(name, factory) of a saved model's folder, checked against its seal, its manifest and its files read
+    now (learned.folder.read_policy: a changed or malformed file fails here, before any episode runs), or
+    from `files`, a sealed folder's files already read and checked (an export's model/); each controller
+    the factory makes shares the one immutable network."""
+    if files is None:  # the seal checked and every file read once, before any is parsed
+        files = read_sealed(folder)
+    source = str(Path(folder) / MANIFEST)
+    m = Manifest.parse(files, source)
     base = m.base_controller
     if base is not None:
         try:
             base_controller(base)
         except ValueError as e:
-            raise ConfigError("base_controller", str(e), str(folder / MANIFEST)) from None
-    network, normalizer = read_policy(folder, m)
+            raise ConfigError("base_controller", str(e), source) from None
+    network, normalizer = read_policy(files, m, source)
+    if m.scenario is not None:  # the inputs it declares are what its network takes on its own scenario
+        held = base_controller(base) if base is not None else None
+        if why := policy_why_not(
+            network.observes, m.policy_inputs, m.plants, held, load_scenario(m.scenario)
+        ):
+            raise ConfigError("inputs", f"on its own scenario {m.scenario}: {why}", source)
 
     def factory() -> Controller:
         policy = LearnedPolicy(

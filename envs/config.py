@@ -126,7 +126,7 @@ class ConfigError(ValueError):
     value came from one) and the allowed range."""
 
     def __init__(self, field: str, message: str, source: str = ""):
-        field, message, source = one_line(field, 200), one_line(message, 500), one_line(source, 300)
+        field, message, source = one_line(field, 200), one_line(message, 2000), one_line(source, 300)
         self.field, self.message, self.source = field, message, source
         super().__init__(f"{source}: {field}: {message}" if source else f"{field}: {message}")
 
@@ -172,34 +172,39 @@ def preset_path(name_or_path: str | Path, kind: str) -> Path:
 
 def load_yaml(name_or_path: str | Path, kind: str = "plants") -> dict[str, Any]:
     """Load a YAML mapping by name (configs/<kind>/<name>.yaml) or by path. Every problem with the file
-    (not UTF-8 text, a syntax error, a tab, a tag such as !!python/object, a key given twice, not a
-    mapping) is a ConfigError naming the file, the line and, where there is one, the key."""
+    (not UTF-8 text, a syntax error, a tab, a tag such as !!python/object, a key given twice, over the
+    bounds, not a mapping) is a ConfigError naming the file, the line and, where there is one, the key."""
     path = preset_path(name_or_path, kind)
     try:
         with path.open("rb") as f:
             raw = f.read(MAX_YAML_BYTES + 1)
-        if len(raw) > MAX_YAML_BYTES:
-            raise ConfigError(
-                "(file)", f"larger than {MAX_YAML_BYTES} bytes: not a file the suite writes", str(path)
-            )
-        text = raw.decode("utf-8")
-        data = copy.deepcopy(_parse(text))  # a copy: callers may edit what they are given
     except OSError as e:
         raise ConfigError("(file)", f"cannot be read: {e.strerror or e}", str(path)) from None
+    return yaml_mapping(raw, str(path))
+
+
+def yaml_mapping(raw: bytes, source: str) -> dict[str, Any]:
+    """The YAML mapping in a file's bytes (source: the file, for errors), as load_yaml reads it: bounded
+    (MAX_YAML_BYTES, MAX_YAML_DEPTH, MAX_YAML_VALUES), safe, every problem one ConfigError."""
+    if len(raw) > MAX_YAML_BYTES:
+        raise ConfigError(
+            "(file)", f"larger than {MAX_YAML_BYTES} bytes: not a file the suite writes", source
+        )
+    try:
+        data = copy.deepcopy(_parse(raw.decode("utf-8")))  # a copy: callers may edit what they are given
     except UnicodeDecodeError as e:
-        why = f"not UTF-8 text (byte {e.start}): is it a YAML file?"
-        raise ConfigError("(file)", why, str(path)) from None
+        raise ConfigError("(file)", f"not UTF-8 text (byte {e.start}): is it a YAML file?", source) from None
     except _DuplicateKey as e:
         raise ConfigError(
-            e.key, f"line {e.line}: key given twice (first on line {e.first}); keep one", str(path)
+            e.key, f"line {e.line}: key given twice (first on line {e.first}); keep one", source
         ) from None
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None) or getattr(e, "context_mark", None)
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark is not None else "(no position)"
         what = " ".join(str(x) for x in (getattr(e, "context", None), getattr(e, "problem", None)) if x)
-        raise ConfigError("(yaml)", f"{where}: {what or e}", str(path)) from None
+        raise ConfigError("(yaml)", f"{where}: {what or e}", source) from None
     if not isinstance(data, dict):
-        raise ConfigError("(file)", "expected a YAML mapping", str(path))
+        raise ConfigError("(file)", "expected a YAML mapping", source)
     return data
 
 

@@ -5,11 +5,18 @@ from pathlib import Path
 import pytest
 import yaml
 
+from frictiongym.agents.learned.folder import seal, sealed_names
 from frictiongym.agents.learned.manifest import MANIFEST, Manifest
 from frictiongym.agents.learned.policy import PolicyInputs
 from frictiongym.envs.config import ConfigError
 
 MODELS = Path(__file__).parents[1] / "agents" / "models"
+
+
+def write_sealed(folder: Path, text: str) -> None:
+    """manifest.yaml written by hand, then the folder sealed as training seals it."""
+    (folder / MANIFEST).write_text(text)
+    seal(folder, sealed_names(folder))
 
 
 def test_every_committed_manifest_reads_and_writes_back_byte_for_byte():
@@ -25,13 +32,11 @@ def test_a_minimal_manifest_needs_the_model_its_network_and_its_sha256(tmp_path)
     """name, algorithm, model, network and sha256 are enough (then no base, α = 1, any plant)."""
     (tmp_path / "policy.safetensors").write_bytes(b"")
     head = "name: PPO-kang\nalgorithm: PPO\nmodel: policy.safetensors\nnetwork: {layers: [linear]}\n"
-    (tmp_path / MANIFEST).write_text(head + f"sha256: {{policy.safetensors: {'ab' * 32}}}\n")
+    write_sealed(tmp_path, head + f"sha256: {{policy.safetensors: {'ab' * 32}}}\n")
     m = Manifest.read(tmp_path)
     assert (m.model, m.plants, m.alpha) == ("policy.safetensors", (), 1.0)
     assert m.policy_inputs == PolicyInputs()
-    (tmp_path / MANIFEST).write_text(
-        head + f"sha256: {{policy.safetensors: {'ab' * 32}}}\nbase_controller: PID\n"
-    )
+    write_sealed(tmp_path, head + f"sha256: {{policy.safetensors: {'ab' * 32}}}\nbase_controller: PID\n")
     assert Manifest.read(tmp_path).policy_inputs == PolicyInputs(base_action=True)  # a residual sees its base
 
 
@@ -44,11 +49,13 @@ def test_the_differences_input_is_written_when_on_and_read_back(tmp_path):
         "R", "SAC", **files, base_controller="PID", inputs=PolicyInputs(base_action=True, differences=True)
     )
     on.write(tmp_path)
+    seal(tmp_path, sealed_names(tmp_path))
     assert "differences: true" in (tmp_path / MANIFEST).read_text()
     assert Manifest.read(tmp_path).policy_inputs == PolicyInputs(base_action=True, differences=True)
     Manifest("R", "SAC", **files, base_controller="PID", inputs=PolicyInputs(base_action=True)).write(
         tmp_path
     )
+    seal(tmp_path, sealed_names(tmp_path))
     assert "differences" not in (tmp_path / MANIFEST).read_text()
     assert Manifest.read(tmp_path).policy_inputs == PolicyInputs(base_action=True)
 
@@ -64,6 +71,12 @@ def test_the_differences_input_is_written_when_on_and_read_back(tmp_path):
         ("name: ''\n", "name"),
         ("alpha: -1\n", "alpha"),
         ("plants: m220\n", "plants"),
+        ("plants: [nosuch]\n", "plants"),
+        ("scenario: ../../configs/scenarios/m220_regulation.yaml\n", "scenario"),  # a name, never a path
+        ("name: ../evil\n", "name"),
+        ("algorithm: 'SAC\\nforged line'\n", "algorithm"),
+        ("alpha: 30\n", "alpha"),
+        ("inputs: {history: 100000}\n", "inputs.history"),
     ],
 )
 def test_a_bad_manifest_is_an_error_naming_the_file_and_key(tmp_path, text, field):
@@ -76,7 +89,7 @@ def test_a_bad_manifest_is_an_error_naming_the_file_and_key(tmp_path, text, fiel
         "sha256": {"policy.safetensors": "ab" * 32},
     }
     bad = yaml.safe_load(text)
-    (tmp_path / MANIFEST).write_text(yaml.safe_dump({**good, **bad}, sort_keys=False))
+    write_sealed(tmp_path, yaml.safe_dump({**good, **bad}, sort_keys=False))
     with pytest.raises(ConfigError) as e:
         Manifest.read(tmp_path)
     assert e.value.field == field and e.value.source == str(tmp_path / MANIFEST)

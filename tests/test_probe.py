@@ -55,7 +55,7 @@ def test_a_refusal_is_one_bounded_line_whatever_the_file_holds(tmp_path):
     path.write_text('"' + "x\\n" * 50_000 + '": 1\n')
     with pytest.raises(ConfigError) as e:
         Node(load_yaml(path), str(path)).done()
-    assert "\n" not in str(e.value) and len(str(e.value)) < 1100 and str(path) in str(e.value)
+    assert "\n" not in str(e.value) and len(str(e.value)) < 2600 and str(path) in str(e.value)
 
 
 def test_a_file_over_the_size_bound_is_refused_unread(tmp_path):

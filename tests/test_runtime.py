@@ -18,6 +18,7 @@ from frictiongym.agents import registry
 from frictiongym.agents.base import EpisodeContext
 from frictiongym.agents.deploy.runtime import RUNTIME, Runtime, export
 from frictiongym.agents.evaluation.evaluate import EnvCache
+from frictiongym.agents.learned.folder import SEAL, seal, sealed_names
 from frictiongym.agents.settings import knowledge_defaults
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.suites import Episode, load_suite
@@ -94,7 +95,7 @@ def test_exact_with_numpy_and_within_float32_with_onnx_on_a_test_episode(tmp_pat
     0.2 Hz reversals."""
     folder = next(f for f in MODELS if f.name == "GenSAC-floorgated-m220_random-s0")
     art = export(str(folder), tmp_path / "art", "m220_reversal_tracking")
-    assert sorted(p.name for p in art.iterdir()) == ["model", "policy.onnx", RUNTIME]
+    assert sorted(p.name for p in art.iterdir()) == [SEAL, "model", "policy.onnx", RUNTIME]
     episode = next(e for e in load_suite("test") if e.scenario == "m220_reversal_tracking")
     c = registry.make(folder.name, [str(folder.parent)])
     numpy_err, onnx_err = drive(
@@ -149,19 +150,91 @@ def test_every_classical_family_s_runtime_gives_its_env_run_s_commands(
     assert drive(registry.make(name), episode, [Runtime.load(art)], raw_readings, steps=1500) == [0.0]
 
 
-def test_a_changed_file_or_another_design_is_refused(tmp_path):
+def reseal(art: Path, **changes) -> None:
+    """runtime.yaml changed (keys set, or removed when None) and the artefact sealed again: what a
+    hostile or careless author hands over."""
+    spec = yaml.safe_load((art / RUNTIME).read_text())
+    for key, value in changes.items():
+        if value is None:
+            del spec[key]
+        else:
+            spec[key] = value
+    (art / RUNTIME).write_text(yaml.safe_dump(spec, sort_keys=False))
+    seal(art, sealed_names(art))
+
+
+def test_a_changed_file_is_refused_by_the_seal(tmp_path):
     folder = next(f for f in MODELS if f.name == "ResSAC-kang_regulation-s0")
     art = export(str(folder), tmp_path / "art")
+    assert (art / SEAL).read_text().splitlines()[-1].endswith("  runtime.yaml")  # the spec is sealed too
     onnx = art / "policy.onnx"
     onnx.write_bytes(onnx.read_bytes() + b"\0")
-    with pytest.raises(ConfigError, match="does not match its recorded SHA-256"):
+    with pytest.raises(ConfigError, match=r"policy\.onnx: does not match its SHA-256 in the seal"):
         Runtime.load(art)
+
+
+@pytest.mark.parametrize("name", [RUNTIME, "model/manifest.yaml", "model/policy.safetensors", SEAL])
+def test_a_single_bit_flip_anywhere_in_an_export_is_refused(tmp_path, name):
+    folder = next(f for f in MODELS if f.name == "ResSAC-kang_regulation-s0")
+    art = export(str(folder), tmp_path / "art")
+    original = (art / name).read_bytes()
+    rng = np.random.default_rng(len(original))
+    for pos in rng.choice(len(original), size=24, replace=False):
+        flipped = bytearray(original)
+        flipped[pos] ^= 1 << int(rng.integers(8))
+        (art / name).write_bytes(bytes(flipped))
+        with pytest.raises(ConfigError) as e:
+            Runtime.load(art)
+        assert "\n" not in str(e.value), pos
+
+
+@pytest.mark.parametrize(
+    ("changes", "field"),
+    [
+        ({"params": {"kp": -1.0}}, "params"),  # another design
+        ({"params": None}, "params"),  # a missing key (was a KeyError traceback in run-drive)
+        ({"command_per_action": 100.0}, "command_per_action"),  # a 10x larger command
+        ({"overrides": {"plant_overrides": {"actuator": {"limit_v": 100.0}}}}, "overrides"),
+        ({"scenario": "../../configs/scenarios/kang_ramp.yaml"}, "scenario"),  # a name, never a path
+        ({"controller": {"model": "/elsewhere"}}, "controller.model"),
+        ({"extra": 1}, "extra"),
+    ],
+)
+def test_runtime_yaml_must_be_what_the_package_derives(tmp_path, changes, field):
+    """Sealed again after the change (the seal is integrity, not a signature): each key must still equal
+    what this package derives from the controller and scenario, so nothing in an artefact scales the
+    command or the supervisor's limits, points outside the folder or names a file."""
     art = export("PID", tmp_path / "pid", "kang_ramp")
-    spec = yaml.safe_load((art / RUNTIME).read_text())
-    spec["params"]["kp"] = -1.0
-    (art / RUNTIME).write_text(yaml.safe_dump(spec))
-    with pytest.raises(ConfigError, match="designs this controller otherwise"):
+    Runtime.load(art)
+    reseal(art, **changes)
+    with pytest.raises(ConfigError) as e:
         Runtime.load(art)
+    assert e.value.field == field and e.value.source == str(art / RUNTIME) and "\n" not in str(e.value)
+
+
+def test_an_onnx_graph_other_than_the_model_s_is_refused(tmp_path):
+    """policy.onnx must be the graph this package builds from the sealed weights: a graph with external
+    data (read relative to the working directory) or any other graph is refused before onnxruntime
+    sees it."""
+    pytest.importorskip("onnxruntime")
+    import onnx
+
+    folder = next(f for f in MODELS if f.name == "ResSAC-kang_regulation-s0")
+    art = export(str(folder), tmp_path / "art")
+    model = onnx.load_from_string((art / "policy.onnx").read_bytes())
+    onnx.save_model(
+        model,
+        str(art / "policy.onnx"),
+        save_as_external_data=True,
+        size_threshold=0,
+        all_tensors_to_one_file=True,
+        location="weights.bin",
+    )
+    seal(art, sealed_names(art))
+    with pytest.raises(ConfigError, match="not the graph this package builds") as e:
+        Runtime.load(art, backend="onnxruntime")
+    assert e.value.field == "policy.onnx"
+    assert Runtime.load(art).controller.name == folder.name  # numpy never reads the graph
 
 
 def test_the_export_command_writes_an_artefact_and_refuses_a_scenario_that_does_not_apply(tmp_path, capsys):

@@ -7,11 +7,12 @@ residual base, or a saved model's folder):
                          saved model), the scenario and the overrides its env runs with (the plant's
                          sampling, sensor scale, reference preview, history, the hardware a base brings),
                          the command scale, the controller's parameters after its design (a record the
-                         runtime checks its own design against), and the SHA-256 of every file
-    model/               a saved model's folder as the leaderboard loads it (manifest.yaml and
+                         runtime checks its own design against)
+    model/               a saved model's files as the leaderboard loads them (manifest.yaml and
                          policy.safetensors: plain weights, no pickle), for a learned controller
     policy.onnx          the same network as ONNX (opset ONNX_OPSET; inputs: the normalised model input,
                          float32), for a learned controller
+    SHA256SUMS           the seal: every file above with its SHA-256 (`sha256sum -c SHA256SUMS`)
 
 `Runtime.load(folder)` rebuilds the controller and `step(readings, reference, preview)` gives the command
 (V or N·m) for one control period: it forms the observation exactly as the env does (each reading and the
@@ -34,16 +35,16 @@ import yaml
 from frictiongym.agents import registry
 from frictiongym.agents.base import Controller, EpisodeContext
 from frictiongym.agents.evaluation.evaluate import controller_overrides
-from frictiongym.agents.learned.folder import file_in_folder, read_checked, sha256_bytes
+from frictiongym.agents.learned.folder import read_sealed, seal
 from frictiongym.agents.learned.manifest import MANIFEST, Manifest
 from frictiongym.agents.learned.policy import LayerNetwork, LearnedPolicy
 from frictiongym.agents.settings import knowledge_defaults
-from frictiongym.envs.config import ConfigError, Node, load_yaml
+from frictiongym.envs.config import ConfigError, Node, scenario_names, yaml_mapping
 from frictiongym.envs.records import atomic_text, atomic_write
 from frictiongym.envs.scenario import Scenario, load_scenario
 from frictiongym.envs.step import sanitize_observation
 
-FORMAT = "frictiongym.runtime/1"
+FORMAT = "frictiongym.runtime/2"  # /2: sealed (SHA256SUMS), runtime.yaml derived key for key
 RUNTIME, ONNX, MODEL_DIR = "runtime.yaml", "policy.onnx", "model"
 ONNX_OPSET = 17
 
@@ -126,54 +127,62 @@ def onnx_bytes(network: LayerNetwork) -> bytes:
 
 def export(source: str, out: Path, scenario: str | None = None) -> Path:
     """Write the artefact of a controller (a registry name or a saved model's folder) for a scenario (a
-    saved model's own scenario by default) into out; returns out. The controller is designed (reset)
-    on the scenario's nominal plant to record its parameters."""
+    saved model's own scenario by default) into out, sealed (learned.folder.seal); returns out. The
+    controller is designed (reset) on the scenario's nominal plant to record its parameters."""
     out = Path(out)
     folder = Path(source)
     files: dict[str, bytes] = {}
     if (folder / MANIFEST).is_file():
-        manifest = Manifest.read(folder)
+        sealed = read_sealed(folder)
+        manifest = Manifest.parse(sealed, str(folder / MANIFEST))
         scenario = scenario or manifest.scenario
         if scenario is None:
             raise ConfigError("--scenario", f"{folder} names no scenario: give one", str(folder / MANIFEST))
-        name, factory = registry.model_factory(folder)
+        name, factory = registry.model_factory(folder, sealed)
         controller = factory()
         for f in (MANIFEST, manifest.model):
-            files[f"{MODEL_DIR}/{f}"] = (folder / f).read_bytes()
+            files[f"{MODEL_DIR}/{f}"] = sealed[f]
         entry: dict[str, Any] = {"model": MODEL_DIR}
     else:
         if scenario is None:
             raise ConfigError("--scenario", f"a built-in controller ({source}) needs the scenario to run on")
         controller, name = registry.make(source), source
         entry = {"builtin": source}
-    sc, overrides = _scenario_of(controller, scenario)
-    if (why := controller.why_not(sc)) is not None:
-        raise ConfigError("--scenario", f"{name} does not apply to {scenario}: {why}")
-    controller.reset(EpisodeContext(sc, sc.spec, knowledge_defaults()))
+    spec = _spec(name, entry, scenario, controller)
     if isinstance(controller, LearnedPolicy) and isinstance(controller.network, LayerNetwork):
         files[ONNX] = onnx_bytes(controller.network)
     out.mkdir(parents=True, exist_ok=True)
     for rel, data in files.items():
         (out / rel).parent.mkdir(parents=True, exist_ok=True)
         atomic_write(out / rel, lambda p, data=data: p.write_bytes(data))
-    spec = {
+    spec["onnx_opset"] = ONNX_OPSET if ONNX in files else None
+    atomic_text(out / RUNTIME, yaml.safe_dump(spec, sort_keys=False))
+    seal(out, [RUNTIME, *files])
+    return out
+
+
+def _spec(name: str, entry: dict[str, str], scenario: str, controller: Controller) -> dict[str, Any]:
+    """runtime.yaml's content for a controller on a scenario, as this package derives it: what export
+    writes and what Runtime.load requires, key for key (the controller is designed here: reset)."""
+    sc, overrides = _scenario_of(controller, scenario)
+    if (why := controller.why_not(sc)) is not None:
+        raise ConfigError("--scenario", f"{name} does not apply to {scenario}: {why}")
+    controller.reset(EpisodeContext(sc, sc.spec, knowledge_defaults()))
+    return {
         "format": FORMAT,
         "name": name,
         "controller": entry,
         "scenario": scenario,
-        "overrides": overrides,
+        "overrides": _json_safe(overrides),
         "control_period_s": sc.control_period,
         "command_per_action": sc.action_scale,
         "output_scale": sc.output_scale,
         "sensors": [s.name for s in sc.spec.sensors],
         "preview_steps": sc.preview_steps,
         "history": sc.history,
-        "onnx_opset": ONNX_OPSET if ONNX in files else None,
+        "onnx_opset": None,
         "params": _json_safe(controller.params()),
-        "sha256": {rel: sha256_bytes(data) for rel, data in files.items()},
     }
-    atomic_text(out / RUNTIME, yaml.safe_dump(spec, sort_keys=False))
-    return out
 
 
 class OnnxNetwork:
@@ -206,41 +215,58 @@ class Runtime:
 
     @classmethod
     def load(cls, folder: str | Path, backend: str = "numpy") -> Runtime:
-        """An exported artefact (every file checked against its SHA-256 first); backend "numpy" or
-        "onnxruntime" for a learned controller's network. The controller's design on the artefact's
-        scenario must give the recorded parameters (the installed package designs as the exporting one
-        did), or this is an error naming the artefact."""
+        """An exported artefact, sealed (learned.folder.read_sealed: every file checked and read once
+        before any is used); backend "numpy" or "onnxruntime" for a learned controller's network.
+        runtime.yaml must be what this package writes for its controller and scenario, key for key: a
+        known scenario by name, the overrides its controller brings (so nothing in the artefact scales
+        the command or the supervisor's limits), the controller's design (the installed package designs
+        as the exporting one did); policy.onnx the graph this package builds for the model. Any
+        difference is a ConfigError naming the artefact and the key."""
         folder = Path(folder)
         source = str(folder / RUNTIME)
-        spec = load_yaml(folder / RUNTIME)
-        node = Node(spec, source)
+        files = read_sealed(folder, RUNTIME)
+        node = Node(yaml_mapping(files[RUNTIME], source), source)
         if node.get("format") != FORMAT:
-            raise node.error("format", f"expected {FORMAT!r}, got {node.get('format')!r}")
-        digests = node.get("sha256") or {}
-        for rel, want in digests.items():  # every file, before any is used
-            path = file_in_folder(folder / Path(rel).parent, Path(rel).name, node, "sha256")
-            read_checked(path, {path.name: want}, source)
+            raise node.error("format", f"expected {FORMAT!r}: export the controller again with this package")
         entry = node.section("controller")
-        if "model" in entry:
-            _, factory = registry.model_factory(folder / entry.string("model"))
+        if list(entry.keys()) == ["model"]:
+            if entry["model"] != MODEL_DIR:
+                raise entry.error("model", f"expected {MODEL_DIR!r}, the artefact's own model folder")
+            sub = {k[len(MODEL_DIR) + 1 :]: v for k, v in files.items() if k.startswith(f"{MODEL_DIR}/")}
+            name, factory = registry.model_factory(folder / MODEL_DIR, sub)
             controller = factory()
+        elif list(entry.keys()) == ["builtin"]:
+            name = entry.string("builtin")
+            controller = registry.make(name)
         else:
-            controller = registry.make(entry.string("builtin"))
+            raise node.error("controller", "expected {model: model} or {builtin: NAME}")
+        scenario = node.choice("scenario", scenario_names())
+        want = _spec(name, dict(entry.data), scenario, controller)
+        want["onnx_opset"] = ONNX_OPSET if ONNX in files else None
+        for key in dict.fromkeys([*node.keys(), *want]):
+            if node.get(key) != want.get(key):
+                why = (
+                    "not a key of runtime.yaml"
+                    if key not in want
+                    else "differs from what this package derives"
+                )
+                raise node.error(
+                    key,
+                    f"{why} (from the controller and scenario): export again, or install the "
+                    "package version that exported it",
+                )
         if backend == "onnxruntime":
-            if not isinstance(controller, LearnedPolicy) or ONNX not in digests:
-                raise ValueError(f"{source}: backend onnxruntime needs a learned controller's {ONNX}")
-            controller.network = OnnxNetwork((folder / ONNX).read_bytes(), controller.network)
+            if not isinstance(controller, LearnedPolicy) or ONNX not in files:
+                raise ConfigError("backend", f"onnxruntime needs a learned controller's {ONNX}", source)
+            if files[ONNX] != onnx_bytes(controller.network):
+                raise ConfigError(
+                    ONNX, "not the graph this package builds for the model: export again", source
+                )
+            controller.network = OnnxNetwork(files[ONNX], controller.network)
         elif backend != "numpy":
-            raise ValueError(f"backend {backend!r}: expected 'numpy' or 'onnxruntime'")
-        sc = load_scenario(node.string("scenario"), node.get("overrides"))
-        runtime = cls(controller, sc, spec)
+            raise ConfigError("backend", f"{backend!r}: expected 'numpy' or 'onnxruntime'", source)
+        runtime = cls(controller, load_scenario(scenario, want["overrides"]), node.data)
         runtime.reset()
-        if _json_safe(controller.params()) != spec["params"]:
-            raise ConfigError(
-                "params",
-                "the installed package designs this controller otherwise than the export did",
-                source,
-            )
         return runtime
 
     def reset(self) -> None:

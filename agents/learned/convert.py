@@ -9,7 +9,15 @@ from pathlib import Path
 
 import yaml
 
-from frictiongym.agents.learned.folder import file_in_folder, load_sb3_zip, read_policy, write_policy
+from frictiongym.agents.learned.folder import (
+    file_in_folder,
+    load_sb3_zip,
+    read_policy,
+    read_sealed,
+    seal,
+    sealed_names,
+    write_policy,
+)
 from frictiongym.agents.learned.manifest import MANIFEST, Manifest
 from frictiongym.agents.learned.policy import LayerNetwork, network_of
 from frictiongym.envs.config import Node, load_yaml
@@ -70,7 +78,9 @@ def convert_folder(src: Path, dest: Path, *, trust_pickle: bool = False, root: P
             data = (Path(src) / record).read_bytes()
             atomic_write(folder / record, lambda p, data=data: p.write_bytes(data))
     atomic_text(folder / MANIFEST, yaml.safe_dump(manifest, sort_keys=False))
+    seal(folder, sealed_names(folder))
     written = Manifest.read(folder)
-    read_policy(folder, written)
+    read_policy(read_sealed(folder), written, str(folder / MANIFEST))
     written.write(folder)  # in the field order and form training writes
+    seal(folder, sealed_names(folder))
     return folder

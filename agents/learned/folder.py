@@ -25,7 +25,11 @@ from __future__ import annotations
 
 import hashlib
 import io
+import os
 import pickle
+import re
+import stat
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -41,9 +45,15 @@ from frictiongym.agents.learned.policy import (
     algorithm_class,
 )
 from frictiongym.envs.config import ConfigError, Node
-from frictiongym.envs.records import atomic_write
+from frictiongym.envs.records import atomic_text, atomic_write
 
 MANIFEST = "manifest.yaml"  # a model folder's description (agents/learned/manifest.py)
+# The seal of a model or export folder: every file of it (sub-folders' included) with its SHA-256, in the
+# form GNU `sha256sum` writes and checks (`sha256sum -c SHA256SUMS`). It covers the manifest's own text.
+SEAL = "SHA256SUMS"
+MAX_SEAL_BYTES = 1 << 16  # the seal file itself, bytes
+MAX_FOLDER_BYTES = 1 << 26  # every sealed file together, bytes (a committed model folder: about 70 kB)
+_SEAL_LINE = re.compile(r"([0-9a-f]{64})  ([A-Za-z0-9_.+-]+(?:/[A-Za-z0-9_.+-]+)?)\n")
 
 POLICY = "policy.safetensors"  # the safe format's one data file
 LAYER_KINDS = ("linear", "relu", "tanh")  # RowwiseActor's layers
@@ -76,20 +86,127 @@ def file_in_folder(folder: Path, name: Any, node: Node, key: str) -> Path:
     return path
 
 
-def read_checked(path: Path, digests: dict[str, str], source: str) -> bytes:
-    """A file's bytes, read once, after its SHA-256 matched the manifest's (a one-line ConfigError
+def check_digest(name: str, data: bytes, digests: Mapping[str, str], source: str) -> bytes:
+    """data (the bytes of file `name`) after its SHA-256 matched the manifest's (a one-line ConfigError
     otherwise, naming the manifest and the file)."""
-    data = path.read_bytes()
-    want = digests.get(path.name)
+    want = digests.get(name)
     if want is None:
-        raise ConfigError(f"sha256.{path.name}", "no SHA-256 recorded for this file", source)
+        raise ConfigError(f"sha256.{name}", "no SHA-256 recorded for this file", source)
     if sha256_bytes(data) != want:
         raise ConfigError(
-            f"sha256.{path.name}",
-            f"{path.name} does not match its recorded SHA-256 (changed or corrupt)",
-            source,
+            f"sha256.{name}", f"{name} does not match its recorded SHA-256 (changed or corrupt)", source
         )
     return data
+
+
+# ------------------------------------------------------------------------------------------- the seal
+def seal(folder: Path, names: Iterable[str]) -> None:
+    """Write folder/SHA256SUMS over the files `names` (paths relative to folder, at most one sub-folder
+    deep), atomically, sorted: the last file a model or export folder gets."""
+    folder = Path(folder)
+    lines = [f"{sha256_bytes((folder / n).read_bytes())}  {n}\n" for n in sorted(set(names))]
+    for line in lines:
+        if not _SEAL_LINE.fullmatch(line):
+            raise ValueError(f"{line.split()[1]!r}: not a file name a seal can hold (letters, digits, _.+-)")
+    atomic_text(folder / SEAL, "".join(lines))
+
+
+def sealed_names(folder: Path) -> list[str]:
+    """The regular files of folder and of its sub-folders (one level), relative, for seal(): no link."""
+    out = []
+    for entry in sorted(os.scandir(folder), key=lambda e: e.name):
+        if entry.name == SEAL or entry.name.startswith("."):
+            continue
+        if entry.is_dir(follow_symlinks=False):
+            out += [
+                f"{entry.name}/{e.name}"
+                for e in sorted(os.scandir(entry.path), key=lambda e: e.name)
+                if e.is_file(follow_symlinks=False) and not e.name.startswith(".")
+            ]
+        elif entry.is_file(follow_symlinks=False):
+            out.append(entry.name)
+    return out
+
+
+class SealError(ConfigError):
+    """A model or export folder whose seal (SHA256SUMS) is missing, malformed or does not match."""
+
+
+def read_sealed(folder: Path, described_by: str = MANIFEST) -> dict[str, bytes]:
+    """Every file a folder's seal lists, read once each, after the seal was checked: SHA256SUMS a regular
+    file in the folder, each of its lines `<64 lowercase hex>  <name>` (a name of letters, digits and _.+-,
+    at most one sub-folder deep, sorted, once), each listed file a regular file reached without a link,
+    its SHA-256 the listed one, all together at most MAX_FOLDER_BYTES. Files the seal does not list are
+    never opened; the seal must cover `described_by` (the folder's manifest.yaml or runtime.yaml). Any
+    mismatch is a SealError naming the folder and the file."""
+    folder = Path(folder)
+    where = str(folder / SEAL)
+    data = _read_plain(
+        folder,
+        SEAL,
+        MAX_SEAL_BYTES,
+        where,
+        f"missing: a model or export folder is sealed by the suite when written; to trust an older one, "
+        f"write it yourself: (cd {folder} && sha256sum FILE... > {SEAL}), its files sorted by name",
+    )
+    try:
+        text = data.decode("ascii")
+    except UnicodeDecodeError:
+        raise SealError("(file)", "not a SHA256SUMS text (a byte outside ASCII)", where) from None
+    lines = text.splitlines(keepends=True)
+    names = []
+    for i, line in enumerate(lines, 1):
+        if not (m := _SEAL_LINE.fullmatch(line)) or any(p in (".", "..") for p in m[2].split("/")):
+            raise SealError(
+                f"line {i}", f"expected '<64 lowercase hex digits>  <file name>', got {line!r}", where
+            )
+        names.append(m[2])
+    if not names or names != sorted(set(names)):
+        raise SealError("(file)", "expected one line per file, sorted by name, each file once", where)
+    if described_by not in names:
+        raise SealError("(file)", f"the seal does not cover the folder's {described_by}", where)
+    files, total = {}, 0
+    for line, name in zip(lines, names, strict=True):
+        body = _read_plain(folder, name, MAX_FOLDER_BYTES - total, where, "listed but missing")
+        total += len(body)
+        if sha256_bytes(body) != line[:64]:
+            raise SealError(name, "does not match its SHA-256 in the seal (changed or corrupt)", where)
+        files[name] = body
+    return files
+
+
+def _read_plain(folder: Path, name: str, limit: int, where: str, absent: str) -> bytes:
+    """folder/name's bytes: each part of the path reached without following a link, the file regular and
+    at most `limit` bytes (opened with O_NOFOLLOW, checked on the open descriptor)."""
+    path = Path(folder)
+    parts = name.split("/")
+    for part in parts[:-1]:
+        path = path / part
+        try:
+            if not stat.S_ISDIR(os.lstat(path).st_mode):
+                raise SealError(name, f"{part} is not a folder of the sealed folder (a link?)", where)
+        except FileNotFoundError:
+            raise SealError(name, absent, where) from None
+    path = path / parts[-1]
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+    except FileNotFoundError:
+        raise SealError(name, absent, where) from None
+    except OSError as e:  # ELOOP: a symbolic link
+        why = (
+            "a symbolic link: a sealed folder holds its files itself" if os.path.islink(path) else e.strerror
+        )
+        raise SealError(name, f"cannot be read: {why}", where) from None
+    with os.fdopen(fd, "rb") as f:
+        info = os.fstat(f.fileno())
+        if not stat.S_ISREG(info.st_mode):
+            raise SealError(name, "not a regular file", where)
+        if info.st_size > limit:
+            raise SealError(name, f"larger than the {limit} bytes a sealed folder may still hold", where)
+        body = f.read(limit + 1)
+    if len(body) > limit:
+        raise SealError(name, f"larger than the {limit} bytes a sealed folder may still hold", where)
+    return body
 
 
 # ------------------------------------------------------------------------------------------- safe format
@@ -128,18 +245,24 @@ def policy_bytes(network: LayerNetwork, normalizer: Normalizer | None) -> bytes:
     return save(arrays)
 
 
-def read_policy(folder: Path, manifest: Any) -> tuple[LayerNetwork, Normalizer | None]:
-    """The network and normaliser of a safe folder (`manifest`: its Manifest, as Manifest.read gives it),
-    the file's SHA-256 checked first, every setting checked against the arrays; errors name the
-    manifest and the key."""
-    node = Node({"model": manifest.model, "network": manifest.network}, str(Path(folder) / MANIFEST))
+def read_policy(
+    files: Mapping[str, bytes], manifest: Any, source: str
+) -> tuple[LayerNetwork, Normalizer | None]:
+    """The network and normaliser of a safe folder from its sealed files (read_sealed) and its Manifest
+    (source: the manifest's path, for errors): the model file's SHA-256 checked against the manifest's,
+    its dtypes (float32 weights, floating bounds and statistics), every setting checked against the
+    arrays; errors name the manifest and the key."""
+    node = Node({"model": manifest.model, "network": manifest.network}, source)
     model = manifest.model
-    path = file_in_folder(folder, model, node, "model")
-    data = read_checked(path, manifest.sha256, node.source)
+    if model not in files:
+        raise node.error("model", f"{model} is not a file of the sealed folder")
+    data = check_digest(model, files[model], manifest.sha256, source)
     try:
         arrays = load(data)
-    except (SafetensorError, ValueError) as e:  # a header that is not what safetensors writes
-        raise node.error("model", f"{model} is not a readable safetensors file ({e})") from None
+    except (SafetensorError, ValueError, KeyError, TypeError) as e:  # a dtype numpy lacks (BF16): KeyError
+        raise node.error("model", f"{model} is not a safetensors file of float arrays ({e!r})") from None
+    if bad := sorted(k for k, a in arrays.items() if a.dtype not in (np.float32, np.float64)):
+        raise node.error("model", f"{model}: arrays {bad} are not float32 or float64")
     net = node.section("network")
     layers = net.get("layers")
     if not isinstance(layers, list) or not layers or any(k not in LAYER_KINDS for k in layers):

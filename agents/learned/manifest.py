@@ -8,15 +8,17 @@ reads it; whether a model applies to a scenario is decided from it, without load
 from __future__ import annotations
 
 import dataclasses
+import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from frictiongym.agents.learned.folder import MANIFEST, POLICY, UntrustedModel, file_in_folder
-from frictiongym.agents.learned.policy import PolicyInputs
-from frictiongym.envs.config import ConfigError, Node, load_yaml
+from frictiongym.agents.learned.folder import MANIFEST, POLICY, UntrustedModel, read_sealed
+from frictiongym.agents.learned.policy import MAX_HISTORY, PolicyInputs
+from frictiongym.envs.config import ConfigError, Node, plant_names, scenario_names, yaml_mapping
 from frictiongym.envs.records import atomic_text
 
 # a run's SB3 model and VecNormalize (pickles: its checkpoint, and a zip converted by convert-model)
@@ -72,53 +74,61 @@ class Manifest:
 
     @classmethod
     def read(cls, folder: Path) -> Manifest:
-        """manifest.yaml of a model folder, every key checked (errors name the file and the key), its model
-        file a regular file inside the folder with a recorded SHA-256 (checked when it is loaded:
-        folder.read_policy). A pickle-bearing SB3 zip is refused, naming the conversion command."""
-        path = Path(folder) / MANIFEST
-        m = Node(load_yaml(path), str(path))
-        kw: dict[str, Any] = {"name": m.string("name"), "algorithm": m.string("algorithm")}
+        """manifest.yaml of a sealed model folder (folder.read_sealed checks the seal first)."""
+        return cls.parse(read_sealed(folder), str(Path(folder) / MANIFEST))
+
+    @classmethod
+    def parse(cls, files: Mapping[str, bytes], source: str) -> Manifest:
+        """The manifest among a sealed folder's files (source: its path, for errors), every key checked
+        against the schema below before use: names of letters, digits and _.+-, a known scenario and known
+        plants by name (never a path), α in (0, 1], inputs within the training config's ranges, the model
+        file one of the sealed files with its SHA-256 recorded. A pickle-bearing SB3 zip is refused,
+        naming the conversion command."""
+        m = Node(yaml_mapping(files[MANIFEST], source), source)
+        kw: dict[str, Any] = {"name": _name(m, "name"), "algorithm": _name(m, "algorithm")}
         if m.get("normalizer") is not None or str(m.get("model", "")).endswith(".zip"):
+            folder = Path(source).parent
             raise UntrustedModel(
                 "model",
                 "a stable-baselines3 zip (and pickled normalizer) runs code when loaded; convert the folder "
                 f"once, trusting its source: frictiongym convert-model {folder} --trust-pickle --out DEST",
-                str(path),
+                source,
             )
-        kw["model"] = m.string("model")
-        file_in_folder(Path(folder), kw["model"], m, "model")
+        kw["model"] = _name(m, "model")
+        if kw["model"] not in files or kw["model"] == MANIFEST:
+            raise m.error("model", f"{kw['model']} is not a file of the sealed folder")
         digests = m.get("sha256")
         if not isinstance(digests, dict) or not all(
             isinstance(k, str) and isinstance(v, str) and len(v) == 64 and set(v) <= set("0123456789abcdef")
             for k, v in digests.items()
         ):
-            raise m.error(
-                "sha256", f"expected a mapping of file name to SHA-256 (64 hex digits), got {digests!r}"
-            )
+            raise m.error("sha256", "expected a mapping of file name to SHA-256 (64 lowercase hex digits)")
         if kw["model"] not in digests:
             raise m.error("sha256", f"no SHA-256 recorded for {kw['model']}")
         kw["sha256"] = dict(digests)
         network = m.get("network")
         if not isinstance(network, dict):
-            raise m.error(
-                "network", f"expected the network's mapping (layers, observes, ...), got {network!r}"
-            )
+            raise m.error("network", "expected the network's mapping (layers, observes, ...)")
         kw["network"] = network
-        for key in ("scenario", "base_controller", "command", "package_version", "git_commit"):
+        if m.get("scenario") is not None:
+            kw["scenario"] = m.choice("scenario", scenario_names())
+        if m.get("base_controller") is not None:  # a base (registry.BASES or a built-in), checked there
+            kw["base_controller"] = _name(m, "base_controller", _BASE)
+        for key in ("command", "package_version", "git_commit"):
             if m.get(key) is not None:
                 kw[key] = m.string(key)
         for key in ("stable_baselines3", "training_seeds"):
             if m.get(key) is not None:
                 kw[key] = str(m[key])
         plants = m.get("plants") or []
-        if not isinstance(plants, list) or not all(isinstance(p, str) for p in plants):
-            raise m.error("plants", f"expected a list of plant names, got {plants!r}")
+        if not isinstance(plants, list) or not all(p in plant_names() for p in plants):
+            raise m.error("plants", f"expected a list of plant names of {plant_names()}")
         kw["plants"] = tuple(plants)
         kw["alpha"] = m.positive("alpha", 1.0, default=1.0)
         if "inputs" in m:
             i = m.section("inputs")
             kw["inputs"] = PolicyInputs(
-                i.integer("history", 0, default=0),
+                i.integer("history", 0, MAX_HISTORY, default=0),
                 i.boolean("privileged", default=False),
                 i.boolean("base_action", default=kw.get("base_controller") is not None),
                 i.boolean("differences", default=False),
@@ -133,10 +143,23 @@ class Manifest:
         for key in ("validation", "config"):  # records of the run, kept as written
             value = m.get(key) or {}
             if not isinstance(value, dict):
-                raise m.error(key, f"expected a mapping, got {value!r}")
+                raise m.error(key, "expected a mapping")
             kw[key] = value
         try:
             m.done()
         except ConfigError as e:
             raise ConfigError(e.field, f"{e.message} (a manifest's fields: Manifest)", e.source) from None
         return cls(**kw)
+
+
+_NAME = re.compile(r"[A-Za-z0-9_.+-]{1,100}")
+_BASE = re.compile(r"[A-Za-z0-9_.+/-]{1,100}")  # a base's name may hold a slash (SF+relay/residual-base)
+
+
+def _name(m: Node, key: str, pattern: re.Pattern[str] = _NAME) -> str:
+    """A name (a model's, an algorithm's, a file's, a base's): 1-100 letters, digits and the pattern's
+    punctuation."""
+    value = m[key]
+    if not isinstance(value, str) or not pattern.fullmatch(value):
+        raise m.error(key, f"expected a name matching {pattern.pattern}")
+    return value

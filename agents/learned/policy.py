@@ -25,6 +25,8 @@ import numpy as np
 from frictiongym.agents.base import Controller, EpisodeContext, Lockstep
 from frictiongym.envs.scenario import REGULATION, Scenario
 
+MAX_HISTORY = 64  # past (readings, action) samples a model may observe
+
 
 @dataclasses.dataclass(frozen=True)
 class PolicyInputs:

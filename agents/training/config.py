@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from frictiongym.agents.learned.policy import PolicyInputs, algorithm_class
+from frictiongym.agents.learned.policy import MAX_HISTORY, PolicyInputs, algorithm_class
 from frictiongym.envs.config import (
     ConfigError,
     Node,
@@ -173,7 +173,7 @@ def parse_run_config(c: Node, name: str, algo: str, scenario: str, source: str) 
         except ValueError as e:
             raise res.error("base", str(e)) from None
     inputs = PolicyInputs(
-        o.integer("history", 0, 64),
+        o.integer("history", 0, MAX_HISTORY),
         o.boolean("privileged_critic"),
         base is not None,
         o.boolean("differences"),

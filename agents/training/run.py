@@ -23,6 +23,7 @@ from frictiongym.agents.evaluation import stats
 from frictiongym.agents.evaluation.engine import init_worker, provenance, stop_workers
 from frictiongym.agents.evaluation.evaluate import EnvCache
 from frictiongym.agents.evaluation.stats import why_not_beats
+from frictiongym.agents.learned.folder import seal
 from frictiongym.agents.learned.manifest import MANIFEST, MODEL, NORMALIZER, Manifest
 from frictiongym.agents.learned.policy import algorithm_class
 from frictiongym.envs.config import (
@@ -359,6 +360,7 @@ class TrainingRun:
         manifest = self.manifest(model.num_timesteps)
         manifest.write(out)
         plot_curve(self.history, self.baseline, self.main, out / "training_curve.png", self.name)
+        seal(out, sealed_files(out, manifest))
         return manifest.as_dict()
 
     def manifest(self, steps: int) -> Manifest:
@@ -459,10 +461,16 @@ def export_model(run: Path, dest: Path) -> Path:
     m = Manifest.read(Path(run))
     folder = Path(dest) / m.name
     folder.mkdir(parents=True, exist_ok=True)
-    for f in (*m.sha256, *RECORDS, MANIFEST):
-        if (Path(run) / f).exists():
-            shutil.copy2(Path(run) / f, folder / f)
+    for f in sealed_files(Path(run), m):
+        shutil.copy2(Path(run) / f, folder / f)
+    seal(folder, sealed_files(folder, m))
     return folder
+
+
+def sealed_files(run: Path, m: Manifest) -> list[str]:
+    """A run's model folder files: the manifest, the files it names and the records present (not the
+    checkpoints, logs or monitor files beside them in a run's folder)."""
+    return [f for f in (MANIFEST, *m.sha256, *RECORDS) if (Path(run) / f).is_file()]
 
 
 def train_one(args: tuple[RunConfig, int, str, str, bool, bool]) -> dict[str, Any] | NothingSelected:
