@@ -27,10 +27,26 @@ from typing import Any
 
 import numpy as np
 
-from .drive_protocol import HOLD, STOP, pack_readings, unpack_command
+from .drive_protocol import HOLD, STOP, Unauthenticated, pack_readings, unpack_command
 from .servo_env import ServoEnv, decode_observation
 
 STARTUP_S = 30.0  # s: the controller's first datagram must come within this
+# the datagrams the drive refuses, by why: from another sender than its controller, without the shared
+# key's tag, not a well-formed command, a non-finite command
+REFUSALS = ("peer", "unauthenticated", "malformed", "nonfinite")
+
+
+def refusal(data: bytes, sender: tuple, controller: tuple, key: bytes | None) -> str | None:
+    """Why the drive refuses a datagram (one of REFUSALS), or None for a command it takes."""
+    if sender != controller:
+        return "peer"
+    try:
+        cmd = unpack_command(data, key)
+    except Unauthenticated:
+        return "unauthenticated"
+    except ValueError:
+        return "malformed"
+    return None if math.isfinite(cmd.value) else "nonfinite"
 
 
 @dataclass(frozen=True)
@@ -53,11 +69,14 @@ def serve(
     faults: Faults = Faults(),
     seed: int = 0,
     ready: Any = None,
+    key: bytes | None = None,
 ) -> dict[str, Any]:
     """Run the drive for duration_s (or until a STOP command), sending readings to `controller` from
-    `address`; returns its figures: periods run, commands missing and late, the ticks' lateness (s:
-    median, 99th percentile, max) and the log of the true output and applied command. `ready`, if given,
-    is set (a threading or multiprocessing Event) once the socket is bound."""
+    `address`; returns its figures: periods run, commands missing and late, the datagrams it refused by
+    why (REFUSALS), the ticks' lateness (s: median, 99th percentile, max) and the log of the true output
+    and applied command. `ready`, if given, is set (a threading or multiprocessing Event) once the socket
+    is bound. `key`: the shared key every datagram is tagged with and checked by (drive_protocol), or
+    None."""
     env = ServoEnv(
         scenario,
         randomize=False,
@@ -73,7 +92,7 @@ def serve(
     if ready is not None:
         ready.set()
     steps = round(duration_s / h)
-    u, missing, late, stopped, rejected = 0.0, 0, 0, False, 0
+    u, missing, late, stopped, rejected = 0.0, 0, 0, False, dict.fromkeys(REFUSALS, 0)
     lateness, output, applied = np.zeros(steps), np.zeros(steps), np.zeros(steps)
     k = 0
     try:
@@ -82,9 +101,10 @@ def serve(
             left = deadline - time.perf_counter()
             if left <= 0 or not select.select([sock], [], [], left)[0]:
                 raise TimeoutError(f"no controller datagram within {STARTUP_S} s on {address}")
-            if sock.recvfrom(64)[1] == controller:
+            data, sender = sock.recvfrom(64)
+            if (why := refusal(data, sender, controller, key)) is None:
                 break
-            rejected += 1
+            rejected[why] += 1
         t0 = time.perf_counter()
         for k in range(steps):
             tick = t0 + k * h
@@ -96,20 +116,17 @@ def serve(
             if not frozen and not rng.random() < faults.loss:
                 d = decode_observation(sc, obs)
                 values = [float(d["sensors"][name]) for name in sensors]
-                sock.sendto(pack_readings(k, now - t0, values), controller)
+                sock.sendto(pack_readings(k, now - t0, values, key), controller)
             answer = None
             while answer is None and (left := tick + h - time.perf_counter()) > 0:
                 if not select.select([sock], [], [], left)[0]:
                     break
                 data, sender = sock.recvfrom(64)
-                try:
-                    cmd = unpack_command(data)
-                except ValueError:
-                    cmd = None
-                # only the controller it was given commands it, with a finite command
-                if sender != controller or cmd is None or not math.isfinite(cmd.value):
-                    rejected += 1
+                # only the controller it was given commands it, with a well-formed, finite command
+                if (why := refusal(data, sender, controller, key)) is not None:
+                    rejected[why] += 1
                     continue
+                cmd = unpack_command(data, key)
                 if cmd.flags == STOP:
                     stopped = True
                     break
@@ -139,7 +156,7 @@ def serve(
         "stopped_by_controller": stopped,
         "missing_commands": missing,
         "late_commands": late,
-        "rejected_datagrams": rejected,
+        "rejected_datagrams": {k: v for k, v in rejected.items() if v},
         "tick_lateness_s": {
             "median": float(np.median(run)),
             "p99": float(np.percentile(run, 99)),

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
+from pathlib import Path
 from typing import Any
 
 
@@ -76,15 +78,22 @@ def add_address(ap: argparse.ArgumentParser, flag: str, default: tuple[str, int]
 
 
 def add_network_option(ap: argparse.ArgumentParser) -> None:
-    """--network, which loopback_only reads."""
+    """--network and --key-file, which loopback_only reads."""
+    ap.add_argument("--network", action="store_true", help="allow addresses off this machine")
     ap.add_argument(
-        "--network", action="store_true", help="allow addresses off this machine (unauthenticated protocol)"
+        "--key-file",
+        type=Path,
+        metavar="PATH",
+        help="a shared key (16-1024 bytes, mode 600; both sides): every datagram is tagged (HMAC-SHA-256)",
     )
 
 
-def loopback_only(ap: argparse.ArgumentParser, network: bool, **addresses: tuple[str, int]) -> None:
-    """Refuse (one line naming the option) an address off this machine unless --network says so: the
-    drive protocol carries no authentication (docs/deploy.md says what a real network needs)."""
+def loopback_only(
+    ap: argparse.ArgumentParser, args: argparse.Namespace, **addresses: tuple[str, int]
+) -> bytes | None:
+    """The shared key of --key-file (None without one), after refusing (one line naming the option) an
+    address off this machine unless --network says so; on a network without a key, a one-line warning:
+    anyone on the segment could then command the drive (docs/deploy.md)."""
     import ipaddress
     import socket
 
@@ -93,8 +102,18 @@ def loopback_only(ap: argparse.ArgumentParser, network: bool, **addresses: tuple
             ip = ipaddress.ip_address(socket.gethostbyname(host))
         except (OSError, ValueError):
             ap.error(f"--{option}: cannot resolve {host!r}")
-        if not ip.is_loopback and not network:
+        if not ip.is_loopback and not args.network:
             ap.error(f"--{option} {host} is not this machine's loopback: pass --network to allow it")
+    if args.key_file is None:
+        if args.network:
+            print("warning: --network without --key-file: datagrams are not authenticated", file=sys.stderr)
+        return None
+    from frictiongym.envs.drive_protocol import read_key  # the standard library's hmac only
+
+    try:
+        return read_key(args.key_file)
+    except (OSError, ValueError) as e:
+        ap.error(f"--key-file: {e}")
 
 
 def backend_of(args: Any, ap: argparse.ArgumentParser) -> Any:

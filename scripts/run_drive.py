@@ -3,13 +3,15 @@ supervisor between them (agents/deploy/drive_loop.py), and log every sample in t
 
     frictiongym run-drive ARTEFACT --drive HOST:PORT [--listen HOST:PORT] [--duration-s S]
                           [--log out/drive/log.csv] [--estop-file PATH] [--limit NAME=VALUE ...]
-                          [--backend numpy|onnxruntime]
+                          [--backend numpy|onnxruntime] [--network] [--key-file PATH]
 
 Rehearse on the virtual drive first (frictiongym virtual-drive; docs/deploy.md). Ctrl-C stops cleanly
 (STOP sent, the log written); creating --estop-file stops at once. --limit overrides a supervisor limit
 (agents.deploy.drive_loop.Limits: command_limit, rate_limit, position_min, position_max, velocity_limit,
 divergence_error, divergence_periods, watchdog_s, stop_after_s). Prints the run's figures as JSON; exit
-code 0 when the run completed or was stopped by the operator, 3 when the supervisor stopped it.
+code 0 when the run completed or was stopped by the operator, 3 when the supervisor stopped it. Both sides
+bind loopback unless --network; off this machine give both --key-file (a shared key: every datagram is
+tagged with an HMAC, and an untagged one is refused and logged; docs/deploy.md).
 """
 
 from __future__ import annotations
@@ -47,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
         "--seed", type=int, default=0, help="the episode whose reference a random-reference scenario tracks"
     )
     args = ap.parse_args(argv)
-    loopback_only(ap, args.network, drive=args.drive, listen=args.listen)
+    key = loopback_only(ap, args, drive=args.drive, listen=args.listen)
     from frictiongym.agents.deploy.drive_loop import Limits, run_drive  # the controllers: after --help
     from frictiongym.agents.deploy.runtime import Runtime  # the controllers: after --help
 
@@ -59,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
         limits = {n: (int(v) if n == "divergence_periods" else v) for n, v in args.limit}
         out = run_drive(
             runtime, args.listen, args.drive, args.duration_s, args.log, limits, args.estop_file,
-            seed=args.seed,
+            seed=args.seed, key=key,
         )  # fmt: skip
     except (ValueError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)

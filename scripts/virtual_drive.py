@@ -3,9 +3,10 @@ to rehearse frictiongym run-drive, faults included, before hardware. Loopback ad
 
     frictiongym virtual-drive --scenario emps_tracking [--listen HOST:PORT] [--controller HOST:PORT]
                               [--duration-s S] [--loss P] [--late-s S] [--freeze-at-s S]
-                              [--runaway-at-s S] [--seed N]
+                              [--runaway-at-s S] [--seed N] [--network] [--key-file PATH]
 
-Prints its figures as JSON (periods, commands missing and late, the ticks' lateness).
+Prints its figures as JSON (periods, commands missing and late, the datagrams it refused by why, the
+ticks' lateness).
 """
 
 from __future__ import annotations
@@ -31,11 +32,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0, help="the episode's seed (its plant and noise)")
     add_network_option(ap)
     args = ap.parse_args(argv)
-    loopback_only(ap, args.network, listen=args.listen, controller=args.controller)
+    key = loopback_only(ap, args, listen=args.listen, controller=args.controller)
     from frictiongym.envs.virtual_drive import Faults, serve  # start-up cost: --help imports no MuJoCo
 
     faults = Faults(args.loss, args.late_s, args.freeze_at_s, args.runaway_at_s)
-    out = serve(args.scenario, args.listen, args.controller, args.duration_s, faults, args.seed)
+    out = serve(args.scenario, args.listen, args.controller, args.duration_s, faults, args.seed, key=key)
     out = {k: v for k, v in out.items() if k not in ("output", "command")}
     print(json.dumps(out, indent=1))
     return 0

@@ -330,6 +330,98 @@ def test_only_a_well_formed_fresh_reading_from_the_drive_is_accepted():
     assert accept(proto.pack_readings(0, 0.0, [0, 0]), drive, drive, 2, None, 3, 100)[1] is None
 
 
+def test_a_keyed_datagram_is_taken_only_whole_and_with_its_key(tmp_path):
+    """With a shared key each datagram ends with a 16-byte HMAC-SHA-256 tag: any changed bit, a missing
+    tag or another key is Unauthenticated (the loop's "unauthenticated" refusal, the drive's too)."""
+    from frictiongym.agents.deploy.drive_loop import accept
+    from frictiongym.envs.virtual_drive import refusal
+
+    key, other = b"k" * 32, b"o" * 32
+    data = proto.pack_readings(3, 0.5, [0.25], key)
+    assert len(data) == len(proto.pack_readings(3, 0.5, [0.25])) + proto.TAG_BYTES
+    assert proto.unpack_readings(data, key) == proto.Readings(3, 0.5, (0.25,))
+    for bad in (proto.pack_readings(3, 0.5, [0.25]), proto.pack_readings(3, 0.5, [0.25], other), b""):
+        with pytest.raises(proto.Unauthenticated):
+            proto.unpack_readings(bad, key)
+    for i in range(len(data) * 8):
+        flipped = bytearray(data)
+        flipped[i // 8] ^= 1 << (i % 8)
+        with pytest.raises(proto.Unauthenticated):
+            proto.unpack_readings(bytes(flipped), key)
+    drive = ("127.0.0.1", 47001)
+    assert accept(proto.pack_readings(0, 0.0, [0.0]), drive, drive, 1, None, 3, 10, key) == (
+        None,
+        "unauthenticated",
+    )
+    assert accept(proto.pack_readings(0, 0.0, [0.0], key), drive, drive, 1, None, 3, 10, key)[1] is None
+    command = proto.pack_command(0, 0.0, proto.RUN, 1.0, key)
+    assert refusal(command, drive, drive, key) is None
+    assert refusal(proto.pack_command(0, 0.0, proto.RUN, 1.0), drive, drive, key) == "unauthenticated"
+    assert refusal(proto.pack_command(0, 0.0, proto.RUN, float("inf"), key), drive, drive, key) == "nonfinite"
+
+
+def test_the_key_file_and_the_network_are_checked_on_the_command_line(tmp_path, capsys):
+    """A key others can read, or too short, is refused in one line; an address off loopback needs
+    --network; --network without a key warns that nothing is authenticated."""
+    from conftest import load_script
+
+    main = load_script("virtual_drive").main
+    key = tmp_path / "key"
+    key.write_bytes(os.urandom(32))
+    key.chmod(0o644)
+    args = ["--scenario", "emps_tracking", "--duration-s", "0.01"]
+    with pytest.raises(SystemExit):
+        main([*args, "--key-file", str(key)])
+    assert "open to others" in capsys.readouterr().err
+    key.chmod(0o600)
+    key.write_bytes(b"short")
+    with pytest.raises(SystemExit):
+        main([*args, "--key-file", str(key)])
+    assert "a key of 5 bytes" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main([*args, "--controller", "192.0.2.1:47002"])  # TEST-NET-1: not this machine
+    assert "is not this machine's loopback: pass --network" in capsys.readouterr().err
+    from frictiongym.scripts.options import add_network_option, loopback_only, parser
+
+    ap = parser("x")
+    add_network_option(ap)
+    assert loopback_only(ap, ap.parse_args(["--network"]), drive=("192.0.2.1", 1)) is None
+    assert "without --key-file" in capsys.readouterr().err
+
+
+def test_a_keyed_run_completes_and_a_reading_without_the_key_is_refused(tmp_path):
+    """Both sides with the key: a crafted drive's untagged reading is refused and logged as
+    unauthenticated, its tagged ones answered with tagged commands."""
+    art = export("PID", tmp_path / "pid", "m220_regulation")
+    key = os.urandom(32)
+    drive, ctrl = ("127.0.0.1", free_port()), ("127.0.0.1", free_port())
+    fake = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    fake.bind(drive)
+    got: list = []
+
+    def craft() -> None:
+        proto.unpack_command(fake.recvfrom(64)[0], key)  # the loop's first HOLD, tagged
+        fake.sendto(proto.pack_readings(0, 0.0, [0.0, 0.0]), ctrl)  # no tag
+        for seq, values in ((0, [0.0, 0.0]), (1, [0.001, 0.0]), (2, [0.002, float("nan")])):
+            fake.sendto(proto.pack_readings(seq, 0.0, values, key), ctrl)
+            time.sleep(0.02)
+        fake.settimeout(2)
+        with contextlib.suppress(TimeoutError):
+            while True:
+                got.append(proto.unpack_command(fake.recvfrom(64)[0], key))
+
+    th = threading.Thread(target=craft)
+    th.start()
+    try:
+        loop = run_drive(Runtime.load(art), ctrl, drive, 1.0, tmp_path / "log.csv", key=key)
+    finally:
+        th.join(10)
+        fake.close()
+    assert loop["rejected"] == {"unauthenticated": 1} and loop["periods"] == 2
+    assert [c.seq for c in got if c.flags == proto.RUN] == [0, 1] and got[-1].flags == proto.STOP
+    assert (tmp_path / "log.rejected.csv").read_text().splitlines()[1].endswith(",unauthenticated,33")
+
+
 def test_a_crafted_drive_is_answered_once_per_fresh_reading_and_a_nan_sensor_stops_it(tmp_path):
     """A drive that replays a reading gets no second command (the controller steps once per period), and a
     non-finite value on a sensor the loop does not track stops the run (stop_reading); the refused

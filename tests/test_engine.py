@@ -66,6 +66,20 @@ def _corrupt(line: str, field: str, value: str) -> str:
     if field == "main":  # the episode's scenario's main metric
         field = load_scenario(values[engine.FIELDS.index("scenario")]).main_metric
     values[engine.FIELDS.index(field)] = value
+    values[-1] = engine.row_digest(dict(zip(engine.FIELDS, values, strict=True)))  # as a writer of it would
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="\n").writerow(values)
+    return buf.getvalue()
+
+
+def _flip(line: str, field: str) -> str:
+    """An episodes.csv line with one field changed and nothing else (its digest not rewritten): a
+    True/False flag flipped, a number's last digit moved by one."""
+    values = next(csv.reader([line]))
+    i = engine.FIELDS.index(field)
+    v = values[i]
+    flags = {"True": "False", "False": "True"}
+    values[i] = flags[v] if v in flags else v[:-1] + str((int(v[-1]) + 1) % 10)
     buf = io.StringIO()
     csv.writer(buf, lineterminator="\n").writerow(values)
     return buf.getvalue()
@@ -86,6 +100,9 @@ def _corrupt(line: str, field: str, value: str) -> str:
         (lambda ls: [*ls[:2], _corrupt(ls[2], "params", "x" * 200_000), *ls[3:]], "a line of 20"),
         (lambda ls: [*ls[:2], '"unclosed, quote' + ls[2][15:], *ls[3:]], "fields where the header has"),
         (lambda ls: [*ls[:2], _corrupt(ls[2], "controller", ""), *ls[3:]], "'controller' is empty"),
+        # a value changed on disk, the row's digest not rewritten: a flipped flag, one digit
+        (lambda ls: [*ls[:2], _flip(ls[2], "diverged"), *ls[3:]], "'row_digest' does not match"),
+        (lambda ls: [*ls[:2], _flip(ls[2], "return"), *ls[3:]], "'row_digest' does not match"),
     ],
 )
 def test_a_resumed_row_that_cannot_be_reused_is_named_and_rerun(serial, tmp_path, capsys, corrupt, why):

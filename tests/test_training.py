@@ -27,7 +27,7 @@ from frictiongym.agents.classical import SpeedScheduled, SpeedScheduledSettings
 from frictiongym.agents.classical.scheduled import GATES
 from frictiongym.agents.evaluation.engine import plan
 from frictiongym.agents.evaluation.evaluate import EnvCache, run_episode
-from frictiongym.agents.learned.folder import POLICY, UntrustedModel
+from frictiongym.agents.learned.folder import POLICY, SEAL, UntrustedModel
 from frictiongym.agents.learned.manifest import MANIFEST
 from frictiongym.agents.learned.policy import LearnedPolicy, residual_action
 from frictiongym.agents.settings import knowledge_defaults
@@ -418,7 +418,8 @@ def test_an_exported_model_is_the_safe_folder_and_acts_as_the_run_s(tmp_path, al
     registry."""
     manifest, run = train(tmp_path, algo)
     folder = export_model(run, tmp_path / "committed")
-    assert sorted(p.name for p in folder.iterdir()) == sorted([MANIFEST, POLICY, *RECORDS])
+    assert sorted(p.name for p in folder.iterdir()) == sorted([MANIFEST, POLICY, SEAL, *RECORDS])
+    assert (folder / SEAL).read_text() == (run / SEAL).read_text()  # the run's folder is sealed as it
     episode = validation_episodes(SCENARIO)[0]
     make = registry.make
     run_row, exported_row = (run_episode(make(manifest["name"], (str(f),)), episode) for f in (run, folder))
@@ -804,7 +805,7 @@ def test_a_run_stopped_at_any_write_of_a_checkpoint_resumes_from_one_complete_se
     continues from the set LATEST names: no step evaluated twice or missing, the rows before that set
     as the uninterrupted run's, and the model folder's file the one its manifest's SHA-256 names."""
     import frictiongym.envs.records as records
-    from frictiongym.agents.learned.folder import read_policy
+    from frictiongym.agents.learned.folder import read_policy, read_sealed
     from frictiongym.agents.learned.manifest import Manifest
 
     real = records.os.replace
@@ -837,7 +838,7 @@ def test_a_run_stopped_at_any_write_of_a_checkpoint_resumes_from_one_complete_se
         clocks = ("wall_s", "train_s")
         assert {**got[0], **dict.fromkeys(clocks)} == {**rows[0], **dict.fromkeys(clocks)}, (k, targets[k])
         m = Manifest.read(run)
-        read_policy(run, m)  # the SHA-256 matches
+        read_policy(read_sealed(run), m, str(run / MANIFEST))  # the seal and the SHA-256 match
         best = min(got, key=lambda r: float(r["main"]) if float(r["admissible"]) else math.inf)
         assert m.selected_step == int(best["step"]), (k, targets[k])
         assert not list(run.glob(".*.tmp*")) and len(list((run / "checkpoint").iterdir())) == 2

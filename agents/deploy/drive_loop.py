@@ -37,7 +37,15 @@ from typing import Any, TextIO
 import numpy as np
 
 from frictiongym.agents.deploy.runtime import Runtime
-from frictiongym.envs.drive_protocol import HOLD, RUN, STOP, Readings, pack_command, unpack_readings
+from frictiongym.envs.drive_protocol import (
+    HOLD,
+    RUN,
+    STOP,
+    Readings,
+    Unauthenticated,
+    pack_command,
+    unpack_readings,
+)
 from frictiongym.envs.scenario import Scenario
 
 STARTUP_S = 10.0  # s: the drive's first readings must come within this, or the run stops (watchdog)
@@ -58,10 +66,11 @@ SUPERVISOR_CODES = {
     "stop_reading": 11,
 }
 # Datagrams the loop refuses, counted in the run's figures (`rejected`) and each written to the log's
-# sidecar (<log>.rejected.csv): from another peer than the drive it was given, malformed (length, magic,
-# sensor count), a replay (a sequence number not above the last accepted) or a jump (more periods ahead
-# than the watchdog lets pass). None of them feeds the watchdog or steps the controller.
-REJECTIONS = ("peer", "malformed", "replay", "jump")
+# sidecar (<log>.rejected.csv): from another peer than the drive it was given, without the shared key's
+# tag (with --key-file), malformed (length, magic, sensor count), a replay (a sequence number not above
+# the last accepted) or a jump (more periods ahead than the watchdog lets pass). None of them feeds the
+# watchdog or steps the controller.
+REJECTIONS = ("peer", "unauthenticated", "malformed", "replay", "jump")
 
 
 @dataclass(frozen=True)
@@ -201,13 +210,15 @@ def run_drive(
     estop_file: Path | None = None,
     ready: Any = None,
     seed: int = 0,
+    key: bytes | None = None,
 ) -> dict[str, Any]:
     """Close the loop for duration_s (drive periods) or until the supervisor stops it; writes the log (the
     drive-log schema) and returns the run's figures: periods, the supervisor's events, the stop and why,
     the compute time (median, 99th percentile, max) and deadline misses (answers later than half a
     period after their readings arrived). Ctrl-C (SIGINT) stops it cleanly: STOP sent, the log written.
     `ready`, if given, is set once the socket is bound. `seed`: the episode whose reference a scenario
-    that draws one per episode tracks (reference_of)."""
+    that draws one per episode tracks (reference_of). `key`: the shared key (drive_protocol.read_key)
+    every datagram is tagged with and checked by, or None."""
     sc = runtime.scenario
     h = sc.control_period
     steps = round(duration_s / h)
@@ -248,13 +259,13 @@ def run_drive(
                 if silent >= (sup.limits.stop_after_s if periods else STARTUP_S):
                     stop = sup.record("stop_watchdog")
                 else:  # HOLD: the drive holds zero (and, before its first readings, learns we are here)
-                    sock.sendto(pack_command(0, time.perf_counter(), HOLD, 0.0), drive)
+                    sock.sendto(pack_command(0, time.perf_counter(), HOLD, 0.0, key), drive)
                     if periods:
                         sup.record("hold")
                 continue
             data, sender = sock.recvfrom(2048)
             arrived = time.perf_counter()
-            r, why = accept(data, sender, drive, len(sc.spec.sensors), last_k, gap, steps)
+            r, why = accept(data, sender, drive, len(sc.spec.sensors), last_k, gap, steps, key)
             if why is not None:
                 rejected[why] += 1
                 rejects.write(f"{arrived - started!r},{sender[0]}:{sender[1]},{why},{len(data)}\n")
@@ -275,7 +286,7 @@ def run_drive(
                 preview = ref[k + 1 : k + 1 + sc.preview_steps].tolist()
                 u, what = sup.limit(runtime.step(list(r.values), reference, preview))
                 sup.record(what)
-                sock.sendto(pack_command(k, time.perf_counter(), RUN, u), sender)
+                sock.sendto(pack_command(k, time.perf_counter(), RUN, u, key), sender)
             spent = time.perf_counter() - arrived
             compute.append(spent)
             periods += 1
@@ -288,7 +299,7 @@ def run_drive(
             if k == steps - 1:  # the run's last period: done
                 break
     finally:
-        sock.sendto(pack_command(0, time.perf_counter(), STOP, 0.0), drive)
+        sock.sendto(pack_command(0, time.perf_counter(), STOP, 0.0, key), drive)
         sock.close()
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
@@ -315,16 +326,26 @@ def run_drive(
 
 
 def accept(
-    data: bytes, sender: tuple, drive: tuple, sensors: int, last: int | None, gap: int, steps: int
+    data: bytes,
+    sender: tuple,
+    drive: tuple,
+    sensors: int,
+    last: int | None,
+    gap: int,
+    steps: int,
+    key: bytes | None = None,
 ) -> tuple[Readings | None, str | None]:
     """(the readings, None) for a datagram the loop takes, else (None, why: one of REJECTIONS): from the
-    drive's address and port, well formed with one value per sensor, and its sequence number strictly
+    drive's address and port, tagged with the shared key if there is one, well formed with one value per
+    sensor, and its sequence number strictly
     above the last accepted one and at most `gap` periods ahead (the first: within the first `gap`), and
     inside the run (below `steps`)."""
     if sender[:2] != drive[:2]:
         return None, "peer"
     try:
-        r = unpack_readings(data)
+        r = unpack_readings(data, key)
+    except Unauthenticated:
+        return None, "unauthenticated"
     except ValueError:
         return None, "malformed"
     if len(r.values) != sensors or not math.isfinite(r.t):

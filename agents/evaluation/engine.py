@@ -14,6 +14,7 @@ serially or on a process pool, their rows written to DIR/episodes.csv as they fi
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import json
 import math
@@ -65,6 +66,7 @@ FIELDS = (  # episodes.csv's columns: the job's identity (Job.key), the result, 
     "env_id",
     "package_version",
     "git_commit",
+    "row_digest",  # the first 16 hex digits of the SHA-256 of the row's other fields (row_digest)
 )
 
 
@@ -328,7 +330,16 @@ def csv_fields(r: EpisodeResult) -> dict[str, Any]:
         "env_id": r.env_id,
         **r.provenance,
     }
-    return {k: repr(v) if isinstance(v, float) else v for k, v in values.items()}
+    out = {k: repr(v) if isinstance(v, float) else "" if v is None else str(v) for k, v in values.items()}
+    out["row_digest"] = row_digest(out)
+    return out
+
+
+def row_digest(row: dict[str, str]) -> str:
+    """A row's check value: the first 16 hex digits of the SHA-256 of its other fields' text, so a value
+    changed on disk (a flipped `diverged`, a digit) is a row that is refused, not reused."""
+    text = "\x1f".join(row[k] for k in FIELDS[:-1])
+    return hashlib.sha256(text.encode("utf-8", errors="surrogatepass")).hexdigest()[:16]
 
 
 MAX_ROW_BYTES = 64 * 1024  # a row is a few hundred bytes; one longer than this is junk, not a result
@@ -363,7 +374,7 @@ def parse_row(row: dict[str, str]) -> EpisodeResult:
             raise ValueError(f"field {key!r} is empty")
     if not row["seed"].isdigit():
         raise ValueError(f"field 'seed' must be a non-negative integer, got {row['seed'][:40]!r}")
-    return EpisodeResult(
+    result = EpisodeResult(
         controller=row["controller"],
         scenario=row["scenario"],
         seed=int(row["seed"]),
@@ -379,6 +390,9 @@ def parse_row(row: dict[str, str]) -> EpisodeResult:
         env_id=row["env_id"],
         provenance={k: row[k] for k in ("package_version", "git_commit")},
     )
+    if row["row_digest"] != row_digest(row):
+        raise ValueError("field 'row_digest' does not match the row's values (changed after it was written)")
+    return result
 
 
 def _csv_text(results: Iterable[EpisodeResult], header: bool = False) -> str:
