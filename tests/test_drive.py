@@ -534,6 +534,48 @@ def test_the_supervisor_s_defaults_let_every_scenario_s_nominal_episodes_run():
     assert runs >= 80 and not stops, stops
 
 
+def test_a_reading_out_of_its_window_on_any_sensor_is_a_stop():
+    """readings_ok: every sensor finite and within the position window widened by its width each side (1e300
+    on an untracked sensor moved a learned command, logged ok)."""
+    sc = load_scenario("m220_regulation")
+    lim = Limits.of(sc, np.zeros(10))
+    span = lim.position_max - lim.position_min
+    sup = Supervisor(lim)
+    assert sup.readings_ok((0.0, lim.position_max + 0.99 * span))
+    for bad in (1e300, -1e300, float("nan"), float("inf"), lim.position_min - 1.01 * span):
+        assert not sup.readings_ok((0.0, bad)) and not sup.readings_ok((bad, 0.0)), bad
+
+
+@pytest.mark.slow  # every scenario with two sensors, a nominal episode each through the runtime
+def test_the_reading_window_passes_every_sensor_of_the_nominal_episodes(tmp_path):
+    """Offline, through the exported runtime and the env's decoded readings (the virtual drive's): under
+    its uncompensated loop, no sensor of a nominal episode of any scenario with an untracked sensor (the
+    M220's load encoder, the flexible servo's second tachometer) leaves the reading window."""
+    from frictiongym.agents.deploy.drive_loop import reference_of
+    from frictiongym.envs.config import scenario_names
+    from frictiongym.envs.servo_env import ServoEnv, decode_observation
+
+    checked = []
+    for name in scenario_names():
+        if len(load_scenario(name).spec.sensors) < 2:
+            continue
+        rt = Runtime.load(export(load_scenario(name).uncompensated, tmp_path / name, name))
+        sc = rt.scenario
+        env = ServoEnv(name, randomize=False, overrides=rt.spec["overrides"])
+        obs, _ = env.reset(seed=0)
+        ref = reference_of(sc, sc.episode_steps, 0)
+        sup = Supervisor(Limits.of(sc, ref[: sc.episode_steps]))
+        for k in range(sc.episode_steps):
+            values = tuple(float(v) for v in decode_observation(sc, obs)["sensors"].values())
+            assert sup.readings_ok(values), (name, k, values)
+            u = rt.step(values, float(ref[k]), ref[k + 1 : k + 1 + sc.preview_steps].tolist())
+            obs, _, term, trunc, _ = env.step(np.array([u / sc.action_scale], np.float32))
+            if term or trunc:
+                break
+        checked.append(name)
+    assert len(checked) >= 20, checked
+
+
 @pytest.mark.parametrize(("scenario", "design"), [("m220_regulation", "PID"), ("flexible_zero_speed", "PID")])
 def test_a_set_point_and_a_tachometer_loop_run_through_on_the_virtual_drive(tmp_path, scenario, design):
     """The two runs the old defaults stopped at once (issue 67): a second on the virtual drive completes."""

@@ -10,6 +10,9 @@ preview. The supervisor sees every reading and every command before it leaves, a
   STOP sent, the log closed;
 - watchdog: no readings for `watchdog_s`: HOLD sent (the drive holds zero) every period; none for
   `stop_after_s` (or no first readings within STARTUP_S): STOP;
+- any sensor's reading not finite, or outside the reading window (the position window widened by its
+  own width on each side: an untracked encoder or tachometer reads in the tracked one's unit): STOP
+  (`stop_reading`);
 - position outside [position_min, position_max] or the speed (the position's difference per period)
   above `velocity_limit`: STOP;
 - divergence: |reference - position| above `divergence_error` for `divergence_periods` periods: STOP;
@@ -146,6 +149,14 @@ class Supervisor:
     def emergency_stop(self) -> None:
         self.emergency = True
 
+    def readings_ok(self, values: tuple[float, ...]) -> bool:
+        """Every sensor's reading finite and inside the reading window (the module docstring): a drive
+        whose sensors read nonsense is stopped before any reading reaches the controller."""
+        lim = self.limits
+        span = lim.position_max - lim.position_min
+        lo, hi = lim.position_min - span, lim.position_max + span
+        return all(lo <= v <= hi for v in values)  # NaN compares false
+
     def check(self, position: float, reference: float, period: float) -> str:
         """ "ok", or the stop a reading calls for."""
         lim = self.limits
@@ -272,7 +283,7 @@ def run_drive(
                 continue
             last_seen = arrived  # only a valid reading from the drive feeds the watchdog
             k = r.seq
-            if not all(map(math.isfinite, r.values)):  # any sensor: a drive that reads nonsense
+            if not sup.readings_ok(r.values):  # any sensor: a drive that reads nonsense
                 stop = sup.record("stop_reading")
                 break
             position = r.values[sc.tracked_sensor]
