@@ -34,6 +34,7 @@ COMMANDS = {  # subcommand -> module of frictiongym.scripts
     "export": "export",
     "run-drive": "run_drive",
     "virtual-drive": "virtual_drive",
+    "rehearse": "rehearse",
     "check-draws": "check_draws",
     "bench-envs": "bench_envs",
     "bench-physics": "bench_physics",

@@ -583,3 +583,24 @@ def test_a_set_point_and_a_tachometer_loop_run_through_on_the_virtual_drive(tmp_
     loop, drive = rehearse(art, tmp_path, 1.0, scenario=scenario)
     h = load_scenario(scenario).control_period
     assert loop["stop"] is None and loop["periods"] == drive["periods"] == round(1.0 / h), loop
+
+
+def test_rehearsals_in_a_row_each_report_their_split_of_the_period(lab_pd, tmp_path, capsys):
+    """frictiongym rehearse: the drive in a process of its own, runs one after another, each with its
+    figures; the compute per period is the controller's step, the send call and the loop's own overhead,
+    the three adding up (each period's parts are measured inside its compute)."""
+    from conftest import load_script
+
+    from frictiongym.agents.deploy.rehearsal import rehearse
+
+    runs = list(rehearse(lab_pd, tmp_path, runs=2, duration_s=0.3))
+    assert [r["run"] for r in runs] == [0, 1]
+    for r in runs:
+        assert r["stop"] is None and r["periods"] == 300 and (tmp_path / f"run{r['run']}.csv").is_file()
+        parts = [r[f"{p}_median_s"] for p in ("step", "send", "overhead")]
+        assert min(parts) > 0 and 0.5 < sum(parts) / r["compute_median_s"] < 1.5
+        assert r["mean_abs_error"] < 2e-3  # it tracks (m)
+    assert load_script("rehearse").main([str(lab_pd), "--runs", "1", "--duration-s", "0.2", "--out",
+                                         str(tmp_path / "cli")]) == 0  # fmt: skip
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == 2 and lines[1].split()[:3] == ["0", "200", "completed"]

@@ -225,8 +225,10 @@ def run_drive(
 ) -> dict[str, Any]:
     """Close the loop for duration_s (drive periods) or until the supervisor stops it; writes the log (the
     drive-log schema) and returns the run's figures: periods, the supervisor's events, the stop and why,
-    the compute time (median, 99th percentile, max) and deadline misses (answers later than half a
-    period after their readings arrived). Ctrl-C (SIGINT) stops it cleanly: STOP sent, the log written.
+    per-period times (median, 99th percentile, max): compute (a datagram's arrival to its answer sent),
+    split into the controller's step, the send call (the kernel's delivery; on loopback it wakes the
+    drive's process) and the loop's own overhead (the rest); deadline misses (answers sent later than
+    half a period after their readings arrived). Ctrl-C (SIGINT) stops it cleanly: STOP sent, the log written.
     `ready`, if given, is set once the socket is bound. `seed`: the episode whose reference a scenario
     that draws one per episode tracks (reference_of). `key`: the shared key (drive_protocol.read_key)
     every datagram is tagged with and checked by, or None."""
@@ -251,7 +253,9 @@ def run_drive(
     if ready is not None:
         ready.set()
     periods = 0  # the periods run (each a row of the log, written as it is run)
-    compute, stop, last_seen, last_k = [], None, time.perf_counter(), None
+    # per period (s): arrival to answer sent, the controller's step, the send call (the kernel's delivery)
+    answer, step_s, send_s = np.zeros(steps + 1), np.full(steps + 1, np.nan), np.full(steps + 1, np.nan)
+    stop, last_seen, last_k = None, time.perf_counter(), None
     log_error: OSError | None = None
     started, rejected = time.perf_counter(), dict.fromkeys(REJECTIONS, 0)
     gap = math.ceil(sup.limits.stop_after_s / h) + 1  # periods a lost stretch may skip before the watchdog
@@ -295,11 +299,18 @@ def run_drive(
                 u = 0.0
             else:
                 preview = ref[k + 1 : k + 1 + sc.preview_steps].tolist()
-                u, what = sup.limit(runtime.step(list(r.values), reference, preview))
+                t_step = time.perf_counter()
+                command = runtime.step(r.values, reference, preview)
+                t_send = time.perf_counter()
+                step_s[periods] = t_send - t_step
+                u, what = sup.limit(command)
                 sup.record(what)
-                sock.sendto(pack_command(k, time.perf_counter(), RUN, u, key), sender)
+                datagram = pack_command(k, time.perf_counter(), RUN, u, key)
+                t_send = time.perf_counter()
+                sock.sendto(datagram, sender)
+                send_s[periods] = time.perf_counter() - t_send
             spent = time.perf_counter() - arrived
-            compute.append(spent)
+            answer[periods] = spent
             periods += 1
             try:  # each row on disk as it is run: a crash or a full disk keeps what ran
                 stream.write(log_row((k * h, position, reference, u, SUPERVISOR_CODES[what], spent, r.t)))
@@ -319,21 +330,27 @@ def run_drive(
         except OSError as e:  # the last rows could not be flushed
             log_error = e
         rejects.close()
-    c = np.asarray(compute) if compute else np.zeros(1)
+    c = answer[: max(periods, 1)]
+    stepped = ~np.isnan(step_s[: len(c)])
+    parts = {"step_s": step_s[: len(c)][stepped], "send_s": send_s[: len(c)][stepped]}
+    parts["overhead_s"] = c[stepped] - parts["step_s"] - parts["send_s"]  # the loop's own work
     return {
         "periods": periods,
         "stop": stop,
         "events": {k: v for k, v in sup.events.items() if v},
-        "compute_s": {
-            "median": float(np.median(c)),
-            "p99": float(np.percentile(c, 99)),
-            "max": float(c.max()),
-        },
+        "compute_s": _spread(c),
+        **{name: _spread(x) for name, x in parts.items()},
         "deadline_misses": int(np.sum(c > 0.5 * h)),
         "log": str(log),
         "log_error": None if log_error is None else f"{log_error.strerror or log_error}: {log}",
         "rejected": {k: v for k, v in rejected.items() if v},
     }
+
+
+def _spread(x: np.ndarray) -> dict[str, float]:
+    """Median, 99th percentile and maximum of per-period times (s); zeros for none."""
+    x = x if len(x) else np.zeros(1)
+    return {"median": float(np.median(x)), "p99": float(np.percentile(x, 99)), "max": float(x.max())}
 
 
 def accept(
