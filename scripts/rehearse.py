@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> int:
                 f"{'':>11}{r['missing_at_drive']:>7}  {r['mean_abs_error']:.3g} / {r['max_abs_error']:.3g}",
                 flush=True,
             )
-    except (ValueError, OSError) as e:
+    except (ValueError, OSError, RuntimeError) as e:  # a refused artefact, a port, a drive that failed
         print(f"error: {e}", file=sys.stderr)
         return 2
     return 3 if stopped else 0
