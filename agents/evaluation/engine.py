@@ -330,7 +330,8 @@ def csv_fields(r: EpisodeResult) -> dict[str, Any]:
         "env_id": r.env_id,
         **r.provenance,
     }
-    out = {k: repr(v) if isinstance(v, float) else "" if v is None else str(v) for k, v in values.items()}
+    text = {k: repr(v) if isinstance(v, float) else "" if v is None else str(v) for k, v in values.items()}
+    out = {k: text.get(k, "") for k in FIELDS[:-1]}  # a result not run by the engine has no provenance
     out["row_digest"] = row_digest(out)
     return out
 
