@@ -87,6 +87,12 @@ class Controller(ABC):
         """The controller's own parameters (for reports)."""
         return {}
 
+    def acting(self) -> Controller:
+        """The controller whose act() this one's act() is, known after reset(): itself, or the loop a
+        wrapper delegates to (a tuned twin's family, a task schedule's chosen loop). The lockstep steps that
+        one, so a wrapper costs nothing per step."""
+        return self
+
     def residual_share(self) -> float:
         """As a residual's base: the share in [0, 1] of the residual's authority α it grants at its last
         act (learned.residual_action). 1: the residual acts everywhere; a gated base keeps it off where
@@ -103,25 +109,57 @@ class Controller(ABC):
 
 class Lockstep:
     """One controller per episode for n episodes stepped together: row i of an observation array is
-    episode i's observation, and each episode's action is what its own controller gives for it alone."""
+    episode i's observation, and each episode's action is what its own controller gives for it alone.
+    Where every episode's acting controller (Controller.acting) acts through command() alone
+    (PhysicalController's act), the rows are decoded at once (physical_actions)."""
 
     def __init__(self, controllers: Sequence[Controller]):
         self.controllers = list(controllers)
         self.reads_truth = self.controllers[0].reads_truth
+        self.physical: list[PhysicalController] | None = None
 
     def reset(self, ctx: EpisodeContext) -> None:
         """Every episode's start (they share a scenario and a design plant)."""
         for c in self.controllers:
             c.reset(ctx)
+        actors = [c.acting() for c in self.controllers]
+        if all(isinstance(a, PhysicalController) and type(a).act is PhysicalController.act for a in actors):
+            self.physical = actors
+        else:
+            self.physical = None
 
     def observe_truth(self, row: int, truth: dict[str, np.ndarray], params: EpisodeParams) -> None:
         """Episode `row`'s ground truth now (controllers with reads_truth)."""
         self.controllers[row].observe_truth(truth, params)
 
-    def act(self, obs: np.ndarray, rows: np.ndarray) -> list[Any]:
+    def act(self, obs: np.ndarray, rows: np.ndarray) -> list[Any] | np.ndarray:
         """The actions of episodes `rows` for their observations (one row each), as each controller
-        returns it."""
+        returns it (or, decoded at once, one (rows, 1) float32 array of the same values)."""
+        if self.physical is not None:
+            return physical_actions(self.physical, obs, rows)
         return [self.controllers[r].act(o) for r, o in zip(rows, obs, strict=True)]
+
+
+def physical_actions(
+    controllers: Sequence[PhysicalController], obs: np.ndarray, rows: np.ndarray
+) -> np.ndarray:
+    """PhysicalController.act for observation rows of one scenario at once: every row's tracked reading,
+    reference and preview decoded in one operation per block (decode_observation's arithmetic: float32 times
+    the output scale, so each row's values are those it decodes alone, bit for bit), then each episode's
+    own command() in physical units; the actions as one (rows, 1) float32 array."""
+    first = controllers[0]
+    sc = first.sc
+    lay, s = sc.layout, sc.output_scale
+    ys = obs[:, lay.slice("sensors").start + sc.spec.sensor_names.index(first.sensor)] * s
+    refs = obs[:, lay.slice("reference").start] * s
+    previews = obs[:, lay.slice("preview")] * s
+    out = np.empty((len(rows), 1), dtype=np.float32)
+    scale = sc.action_scale
+    for j, r in enumerate(rows.tolist()):
+        c = controllers[r]
+        c.preview = previews[j]
+        out[j, 0] = c.command(ys[j], float(refs[j])) / scale
+    return out
 
 
 class PhysicalController(Controller):
@@ -147,10 +185,6 @@ class PhysicalController(Controller):
         self.preview = d["preview"]  # r(t_{k+1}) ... r(t_{k+P}), for loops with feed-forward
         u = self.command(d["sensors"][self.sensor], d["reference"])
         return np.array([u / self.sc.action_scale], dtype=np.float32)
-
-    @abstractmethod
-    def command(self, y: float, r: float) -> float:
-        """Command (V or N·m) from the tracked reading y and the reference r."""
 
 
 def drive_friction_reason(scenario: Scenario) -> str | None:

@@ -315,6 +315,9 @@ class TaskScheduled(Controller):
     def act(self, obs: np.ndarray) -> np.ndarray:
         return self.loop.act(obs)
 
+    def acting(self) -> Controller:
+        return self.loop.acting()
+
     def params(self) -> dict[str, Any]:
         loop = getattr(self, "loop", None)
         return {} if loop is None else {"loop": loop.name, **loop.params()}

@@ -87,5 +87,8 @@ class Tuned(Controller):
     def act(self, obs: np.ndarray) -> np.ndarray:
         return self.inner.act(obs)
 
+    def acting(self) -> Controller:
+        return self.inner.acting()
+
     def params(self) -> dict[str, Any]:
         return self.inner.params()

@@ -121,7 +121,12 @@ class PlantSpec:
         return round(self.control_period / self.timestep)
 
     def joint_index(self, name: str) -> int:
-        return [j.name for j in self.joints].index(name)
+        return self._joint_indices[name]
+
+    @cached_property
+    def _joint_indices(self) -> dict[str, int]:
+        """Each joint's index by name, once (a feed-forward asks per joint per control period)."""
+        return {j.name: i for i, j in enumerate(self.joints)}
 
     def joint_unit(self, name: str) -> str:
         """A joint's position unit: m on a slide (a carriage), rad on a hinge."""
