@@ -599,6 +599,7 @@ class PolicyLockstep(Lockstep):
     def act(self, obs: np.ndarray, rows: np.ndarray) -> np.ndarray:
         if self.bases is None:
             return self.policy.actions(obs, None)
-        base = np.array([np.asarray(u).reshape(1) for u in self.bases.act(obs, rows)])  # dtypes as act's
+        acts = self.bases.act(obs, rows)  # an array where the bases' rows are decoded at once (Lockstep)
+        base = acts if isinstance(acts, np.ndarray) else np.array([np.asarray(u).reshape(1) for u in acts])
         share = np.array([[self.bases.controllers[r].residual_share()] for r in rows])
         return self.policy.actions(obs, base, share)
