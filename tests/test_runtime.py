@@ -197,6 +197,7 @@ def test_a_single_bit_flip_anywhere_in_an_export_is_refused(tmp_path, name):
         ({"overrides": {"plant_overrides": {"actuator": {"limit_v": 100.0}}}}, "overrides"),
         ({"scenario": "../../configs/scenarios/kang_ramp.yaml"}, "scenario"),  # a name, never a path
         ({"controller": {"model": "/elsewhere"}}, "controller.model"),
+        ({"controller": {"model": "model"}}, "(file)"),  # a model the artefact does not hold
         ({"extra": 1}, "extra"),
     ],
 )
@@ -209,7 +210,8 @@ def test_runtime_yaml_must_be_what_the_package_derives(tmp_path, changes, field)
     reseal(art, **changes)
     with pytest.raises(ConfigError) as e:
         Runtime.load(art)
-    assert e.value.field == field and e.value.source == str(art / RUNTIME) and "\n" not in str(e.value)
+    assert e.value.field == field and "\n" not in str(e.value)
+    assert e.value.source == str(art / ("model/manifest.yaml" if field == "(file)" else RUNTIME))
 
 
 def test_an_onnx_graph_other_than_the_model_s_is_refused(tmp_path):

@@ -84,6 +84,8 @@ class Manifest:
         plants by name (never a path), α in (0, 1], inputs within the training config's ranges, the model
         file one of the sealed files with its SHA-256 recorded. A pickle-bearing SB3 zip is refused,
         naming the conversion command."""
+        if MANIFEST not in files:
+            raise ConfigError("(file)", "missing from the sealed folder", source)
         m = Node(yaml_mapping(files[MANIFEST], source), source)
         kw: dict[str, Any] = {"name": _name(m, "name"), "algorithm": _name(m, "algorithm")}
         if m.get("normalizer") is not None or str(m.get("model", "")).endswith(".zip"):
