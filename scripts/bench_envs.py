@@ -12,6 +12,7 @@ same model in an episode's state, ~1 µs of 27 µs on the M220, which is not the
 
     frictiongym bench-envs [--scenarios kang_regulation ...] [--seconds 2]
                                  [--friction-models lugre maxwell_slip ...]
+    frictiongym bench-envs --all-ids [--seconds 2]
 
 With several friction structures (envs/friction.py), each scenario is measured on each of them, and the
 env steps/s of every structure relative to LuGre's, on the same scenario in the same run.
@@ -142,6 +143,24 @@ def bench_vector(
     return paired(lambda: venv.step(actions), bare_vector(venv.core)[0], seconds, num_envs)
 
 
+def every_id(seconds: float) -> None:
+    """The single env of every registered frictiongym id (a per-plant id runs its default scenario)
+    against its bare loop, side by side, and how many reach 0.7 of it."""
+    import gymnasium as gym
+
+    import frictiongym.envs  # noqa: F401  (registers the ids)
+
+    ids = sorted(i for i in gym.registry if i.startswith("frictiongym/"))
+    print(f"{'id':44s} {'scenario':28s} {'env steps/s':>12s} {'bare steps/s':>13s} {'ratio':>6s}")
+    met = 0
+    for i in ids:
+        scenario = gym.registry[i].scenario
+        e, b = bench_single(scenario, seconds)
+        met += e / b >= 0.7
+        print(f"{i:44s} {scenario:28s} {e:12.0f} {b:13.0f} {e / b:6.2f}", flush=True)
+    print(f"{met} of {len(ids)} ids at least 0.7 of their bare loop")
+
+
 def main() -> None:
     ap = parser(__doc__)
     ap.add_argument(
@@ -152,6 +171,11 @@ def main() -> None:
     )
     ap.add_argument("--seconds", type=float, default=4.0, help="measuring time per pair of figures")
     ap.add_argument(
+        "--all-ids",
+        action="store_true",
+        help="the single env of every registered id against its bare loop (target >= 0.7), then stop",
+    )
+    ap.add_argument(
         "--friction-models",
         nargs="+",
         default=["lugre"],
@@ -159,6 +183,9 @@ def main() -> None:
         help="the friction structures",
     )
     args = ap.parse_args()
+    if args.all_ids:
+        every_id(args.seconds)
+        return
     print(f"{'scenario':36s} {'what':10s} {'env steps/s':>12s} {'bare steps/s':>13s} {'ratio':>6s}")
     for sc in args.scenarios:
         lugre: dict[str, float] = {}

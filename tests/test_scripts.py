@@ -115,6 +115,25 @@ def test_bench_envs_prints_ratios():
     assert all(0.05 < float(r[-1]) < 2 for r in rows)
 
 
+@pytest.mark.slow  # a benchmark of 44 envs
+def test_bench_envs_measures_every_registered_id():
+    """--all-ids: one line per registered id with its scenario and ratio, then how many reach 0.7."""
+    import gymnasium as gym
+
+    proc = subprocess.run(
+        [sys.executable, str(ROOT / "scripts/bench_envs.py"), "--all-ids", "--seconds", "0.05"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stderr
+    ids = sorted(i for i in gym.registry if i.startswith("frictiongym/"))
+    lines = proc.stdout.splitlines()
+    assert [ln.split()[0] for ln in lines[1:-1]] == ids
+    assert all(0.05 < float(ln.split()[-1]) < 2 for ln in lines[1:-1])
+    assert lines[-1].endswith(f"of {len(ids)} ids at least 0.7 of their bare loop")
+
+
 @pytest.mark.slow  # fresh interpreters
 def test_the_frictiongym_command_is_installed_and_runs_a_front_end(tmp_path):
     """The console script (setup.cfg) runs scripts/reproduce.py's main: its usage names the command and a
