@@ -70,13 +70,17 @@ def serve(
     seed: int = 0,
     ready: Any = None,
     key: bytes | None = None,
+    poll_s: float | None = 0.0,
 ) -> dict[str, Any]:
     """Run the drive for duration_s (or until a STOP command), sending readings to `controller` from
     `address`; returns its figures: periods run, commands missing and late, the datagrams it refused by
     why (REFUSALS), the ticks' lateness (s: median, 99th percentile, max) and the log of the true output
     and applied command. `ready`, if given, is set (a threading or multiprocessing Event) once the socket
     is bound. `key`: the shared key every datagram is tagged with and checked by (drive_protocol), or
-    None."""
+    None. `poll_s`: how long after sending its readings the drive polls for the command before it sleeps
+    until the period's end (None: half the period), as a drive's receive path polls: the controller's
+    send then delivers without waking a process (on loopback the wake-up is the sender's cost; 0 in a
+    thread beside the loop, which polling would starve of the interpreter lock)."""
     env = ServoEnv(
         scenario,
         randomize=False,
@@ -92,6 +96,7 @@ def serve(
     if ready is not None:
         ready.set()
     steps = round(duration_s / h)
+    poll_s = 0.5 * h if poll_s is None else poll_s
     u, missing, late, stopped, rejected = 0.0, 0, 0, False, dict.fromkeys(REFUSALS, 0)
     lateness, output, applied = np.zeros(steps), np.zeros(steps), np.zeros(steps)
     k = 0
@@ -118,8 +123,12 @@ def serve(
                 values = [float(d["sensors"][name]) for name in sensors]
                 sock.sendto(pack_readings(k, now - t0, values, key), controller)
             answer = None
+            poll_until = time.perf_counter() + poll_s
             while answer is None and (left := tick + h - time.perf_counter()) > 0:
-                if not select.select([sock], [], [], left)[0]:
+                if time.perf_counter() < poll_until:  # polling: the command's arrival wakes no process
+                    if not select.select([sock], [], [], 0)[0]:
+                        continue
+                elif not select.select([sock], [], [], left)[0]:
                     break
                 data, sender = sock.recvfrom(64)
                 # only the controller it was given commands it, with a well-formed, finite command

@@ -4,7 +4,7 @@ the controller's step, the send call and the loop's own overhead, commands missi
 tracking error (the tracked output's unit).
 
     frictiongym rehearse ARTEFACT [--runs 10] [--duration-s 6] [--seed N] [--backend numpy|onnxruntime]
-                         [--out out/rehearse] [--loss P] [--late-s S]
+                         [--out out/rehearse] [--loss P] [--late-s S] [--poll-s S]
 
 Run it above the machine's other work, as a drive's loop runs: `nice -n -10 frictiongym rehearse ...`
 (docs/deploy.md). Exit code 0 when every rehearsal completed, 3 when the supervisor stopped one.
@@ -30,6 +30,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=Path("out/rehearse"), help="the logs' folder (run<i>.csv)")
     ap.add_argument("--loss", type=float, default=0.0, help="probability a readings datagram is lost")
     ap.add_argument("--late-s", type=float, default=0.0, help="readings sent this late in their period (s)")
+    ap.add_argument(
+        "--poll-s",
+        type=float,
+        help="how long the drive polls for each command before it sleeps (s; default: half a period)",
+    )
     args = ap.parse_args(argv)
     if args.runs < 1 or args.duration_s <= 0:
         ap.error("--runs must be >= 1 and --duration-s > 0")
@@ -42,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         for r in rehearse(
             args.artefact, args.out, args.runs, args.duration_s, Faults(args.loss, args.late_s), args.seed,
-            args.backend,
+            args.backend, poll_s=args.poll_s,
         ):  # fmt: skip
             stopped |= r["stop"] is not None
             ms = {k: 1e3 * v for k, v in r.items() if k.endswith("_s")}

@@ -35,9 +35,9 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def _drive(args: tuple, ready: Any, out: Any) -> None:
+def _drive(args: tuple, poll_s: float | None, ready: Any, out: Any) -> None:
     """The virtual drive in its process: its figures (without the logged arrays) onto `out`."""
-    figures = serve(*args, ready=ready)
+    figures = serve(*args, ready=ready, poll_s=poll_s)
     out.put({k: v for k, v in figures.items() if k not in ("output", "command")})
 
 
@@ -51,10 +51,12 @@ def rehearse(
     backend: str = "numpy",
     limits: dict[str, Any] | None = None,
     done: Callable[[dict[str, Any]], None] | None = None,
+    poll_s: float | None = None,
 ) -> Iterator[dict[str, Any]]:
     """`runs` rehearsals of duration_s each, one after another, each against a new virtual drive of the
     artefact's scenario (seed: its episode) in its own process; yields each one's figures (module
-    docstring) as it ends; logs go to out/run<i>.csv."""
+    docstring) as it ends; logs go to out/run<i>.csv. poll_s: how long the drive polls for each command
+    before it sleeps (virtual_drive.serve; None: half a period)."""
     faults = faults or Faults()
     rt = Runtime.load(artefact, backend)
     sc = rt.scenario
@@ -62,7 +64,7 @@ def rehearse(
     for i in range(runs):
         drive, ctrl = ("127.0.0.1", _free_port()), ("127.0.0.1", _free_port())
         ready, figures = ctx.Event(), ctx.Queue()
-        args = ((sc.name, drive, ctrl, duration_s, faults, seed), ready, figures)
+        args = ((sc.name, drive, ctrl, duration_s, faults, seed), poll_s, ready, figures)
         process = ctx.Process(target=_drive, args=args, daemon=True)
         process.start()
         try:
