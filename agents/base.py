@@ -125,6 +125,9 @@ class Lockstep:
         actors = [c.acting() for c in self.controllers]
         if all(isinstance(a, PhysicalController) and type(a).act is PhysicalController.act for a in actors):
             self.physical = actors
+            sc, lay = ctx.scenario, ctx.scenario.layout
+            sensor = lay.slice("sensors").start + sc.spec.sensor_names.index(actors[0].sensor)
+            self._columns = (sensor, lay.slice("reference").start, lay.slice("preview"))
         else:
             self.physical = None
 
@@ -136,23 +139,27 @@ class Lockstep:
         """The actions of episodes `rows` for their observations (one row each), as each controller
         returns it (or, decoded at once, one (rows, 1) float32 array of the same values)."""
         if self.physical is not None:
-            return physical_actions(self.physical, obs, rows)
+            return physical_actions(self.physical, self._columns, obs, rows)
         return [self.controllers[r].act(o) for r, o in zip(rows, obs, strict=True)]
 
 
 def physical_actions(
-    controllers: Sequence[PhysicalController], obs: np.ndarray, rows: np.ndarray
+    controllers: Sequence[PhysicalController],
+    columns: tuple[int, int, slice],
+    obs: np.ndarray,
+    rows: np.ndarray,
 ) -> np.ndarray:
     """PhysicalController.act for observation rows of one scenario at once: every row's tracked reading,
-    reference and preview decoded in one operation per block (decode_observation's arithmetic: float32 times
-    the output scale, so each row's values are those it decodes alone, bit for bit), then each episode's
-    own command() in physical units; the actions as one (rows, 1) float32 array."""
-    first = controllers[0]
-    sc = first.sc
-    lay, s = sc.layout, sc.output_scale
-    ys = obs[:, lay.slice("sensors").start + sc.spec.sensor_names.index(first.sensor)] * s
-    refs = obs[:, lay.slice("reference").start] * s
-    previews = obs[:, lay.slice("preview")] * s
+    reference and preview (their observation columns, found once at the lockstep's reset) decoded in one
+    operation per block (decode_observation's arithmetic: float32 times the output scale, so each row's
+    values are those it decodes alone, bit for bit), then each episode's own command() in physical units;
+    the actions as one (rows, 1) float32 array."""
+    sc = controllers[0].sc
+    sensor, reference, preview = columns
+    s = sc.output_scale
+    ys = obs[:, sensor] * s
+    refs = obs[:, reference] * s
+    previews = obs[:, preview] * s
     out = np.empty((len(rows), 1), dtype=np.float32)
     scale = sc.action_scale
     for j, r in enumerate(rows.tolist()):
@@ -185,6 +192,10 @@ class PhysicalController(Controller):
         self.preview = d["preview"]  # r(t_{k+1}) ... r(t_{k+P}), for loops with feed-forward
         u = self.command(d["sensors"][self.sensor], d["reference"])
         return np.array([u / self.sc.action_scale], dtype=np.float32)
+
+    @abstractmethod
+    def command(self, y: float, r: float) -> float:
+        """Command (V or N·m) from the tracked reading y and the reference r."""
 
 
 def drive_friction_reason(scenario: Scenario) -> str | None:
