@@ -148,22 +148,24 @@ def export(source: str, out: Path, scenario: str | None = None) -> Path:
             raise ConfigError("--scenario", f"a built-in controller ({source}) needs the scenario to run on")
         controller, name = registry.make(source), source
         entry = {"builtin": source}
-    spec = _spec(name, entry, scenario, controller)
     if isinstance(controller, LearnedPolicy) and isinstance(controller.network, LayerNetwork):
         files[ONNX] = onnx_bytes(controller.network)
+    spec = _spec(name, entry, scenario, controller, ONNX in files)
     out.mkdir(parents=True, exist_ok=True)
     for rel, data in files.items():
         (out / rel).parent.mkdir(parents=True, exist_ok=True)
         atomic_write(out / rel, lambda p, data=data: p.write_bytes(data))
-    spec["onnx_opset"] = ONNX_OPSET if ONNX in files else None
     atomic_text(out / RUNTIME, yaml.safe_dump(spec, sort_keys=False))
     seal(out, [RUNTIME, *files])
     return out
 
 
-def _spec(name: str, entry: dict[str, str], scenario: str, controller: Controller) -> dict[str, Any]:
-    """runtime.yaml's content for a controller on a scenario, as this package derives it: what export
-    writes and what Runtime.load requires, key for key (the controller is designed here: reset)."""
+def _spec(
+    name: str, entry: dict[str, str], scenario: str, controller: Controller, onnx: bool
+) -> dict[str, Any]:
+    """runtime.yaml's content for a controller on a scenario (with its network as policy.onnx or not), as
+    this package derives it: what export writes and what Runtime.load requires, key for key (the
+    controller is designed here: reset)."""
     sc, overrides = _scenario_of(controller, scenario)
     if (why := controller.why_not(sc)) is not None:
         raise ConfigError("--scenario", f"{name} does not apply to {scenario}: {why}")
@@ -180,7 +182,7 @@ def _spec(name: str, entry: dict[str, str], scenario: str, controller: Controlle
         "sensors": [s.name for s in sc.spec.sensors],
         "preview_steps": sc.preview_steps,
         "history": sc.history,
-        "onnx_opset": None,
+        "onnx_opset": ONNX_OPSET if onnx else None,
         "params": _json_safe(controller.params()),
     }
 
@@ -241,8 +243,7 @@ class Runtime:
         else:
             raise node.error("controller", "expected {model: model} or {builtin: NAME}")
         scenario = node.choice("scenario", scenario_names())
-        want = _spec(name, dict(entry.data), scenario, controller)
-        want["onnx_opset"] = ONNX_OPSET if ONNX in files else None
+        want = _spec(name, dict(entry.data), scenario, controller, ONNX in files)
         for key in dict.fromkeys([*node.keys(), *want]):
             if node.get(key) != want.get(key):
                 why = (

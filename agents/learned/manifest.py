@@ -122,9 +122,9 @@ class Manifest:
         for key in ("stable_baselines3", "training_seeds"):
             if m.get(key) is not None:
                 kw[key] = str(m[key])
-        plants = m.get("plants") or []
-        if not isinstance(plants, list) or not all(p in plant_names() for p in plants):
-            raise m.error("plants", f"expected a list of plant names of {plant_names()}")
+        plants, known = m.get("plants") or [], plant_names()
+        if not isinstance(plants, list) or not all(p in known for p in plants):
+            raise m.error("plants", f"expected a list of plant names of {known}")
         kw["plants"] = tuple(plants)
         kw["alpha"] = m.positive("alpha", 1.0, default=1.0)
         if "inputs" in m:
