@@ -4,13 +4,26 @@ numbers, a stiff ODE reference), starts fresh interpreters, a process pool or a 
 signals; the inner loop is `python -m pytest -m "not slow"` (about a minute on 2 cores), CI runs
 everything. Helpers shared by test modules: `lockstep` (single vs vector env bit for bit) and
 `write_config` (a small training config, test_training and test_learned), `load_script` (a front end of
-scripts/ as a module, for its functions)."""
+scripts/ as a module, for its functions), `bit_flips` (a sealed file's single-bit corruptions,
+test_model_trust and test_runtime)."""
 
 import importlib.util
+from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
 
+import numpy as np
 import yaml
+
+
+def bit_flips(data: bytes, count: int) -> Iterator[tuple[int, bytes]]:
+    """(position, data with one random bit flipped there) at `count` distinct random positions, drawn
+    from a generator seeded with the data's length (the same sweep every run)."""
+    rng = np.random.default_rng(len(data))
+    for pos in rng.choice(len(data), size=count, replace=False):
+        flipped = bytearray(data)
+        flipped[pos] ^= 1 << int(rng.integers(8))
+        yield int(pos), bytes(flipped)
 
 
 def load_script(name: str) -> ModuleType:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import load_script, write_config
+from conftest import bit_flips, load_script, write_config
 
 from frictiongym.agents import registry
 from frictiongym.agents.evaluation import leaderboard
@@ -337,11 +337,8 @@ def test_a_single_bit_flip_anywhere_in_a_committed_folder_is_refused(tmp_path, n
     flips of a manifest loaded): 64 positions of each file, a random bit each, all refused."""
     folder = safe_copy(tmp_path)
     original = (folder / name).read_bytes()
-    rng = np.random.default_rng(len(original))
-    for pos in rng.choice(len(original), size=64, replace=False):
-        flipped = bytearray(original)
-        flipped[pos] ^= 1 << int(rng.integers(8))
-        (folder / name).write_bytes(bytes(flipped))
+    for pos, flipped in bit_flips(original, 64):
+        (folder / name).write_bytes(flipped)
         with pytest.raises(ConfigError) as e:
             registry.model_factory(folder)
         assert "\n" not in str(e.value), pos

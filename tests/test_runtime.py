@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import bit_flips
 
 from frictiongym.agents import registry
 from frictiongym.agents.base import EpisodeContext
@@ -177,12 +178,8 @@ def test_a_changed_file_is_refused_by_the_seal(tmp_path):
 def test_a_single_bit_flip_anywhere_in_an_export_is_refused(tmp_path, name):
     folder = next(f for f in MODELS if f.name == "ResSAC-kang_regulation-s0")
     art = export(str(folder), tmp_path / "art")
-    original = (art / name).read_bytes()
-    rng = np.random.default_rng(len(original))
-    for pos in rng.choice(len(original), size=24, replace=False):
-        flipped = bytearray(original)
-        flipped[pos] ^= 1 << int(rng.integers(8))
-        (art / name).write_bytes(bytes(flipped))
+    for pos, flipped in bit_flips((art / name).read_bytes(), 24):
+        (art / name).write_bytes(flipped)
         with pytest.raises(ConfigError) as e:
             Runtime.load(art)
         assert "\n" not in str(e.value), pos
