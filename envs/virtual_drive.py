@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from .drive_protocol import HOLD, STOP, Unauthenticated, pack_readings, unpack_command
+from .drive_protocol import HOLD, STOP, Command, Unauthenticated, pack_readings, unpack_command
 from .servo_env import ServoEnv, decode_observation
 
 STARTUP_S = 30.0  # s: the controller's first datagram must come within this
@@ -36,17 +36,20 @@ STARTUP_S = 30.0  # s: the controller's first datagram must come within this
 REFUSALS = ("peer", "unauthenticated", "malformed", "nonfinite")
 
 
-def refusal(data: bytes, sender: tuple, controller: tuple, key: bytes | None) -> str | None:
-    """Why the drive refuses a datagram (one of REFUSALS), or None for a command it takes."""
+def take_command(
+    data: bytes, sender: tuple, controller: tuple, key: bytes | None
+) -> tuple[Command | None, str | None]:
+    """(the command, None) for a datagram the drive takes, else (None, why: one of REFUSALS); each datagram
+    is unpacked (and its tag checked) once."""
     if sender != controller:
-        return "peer"
+        return None, "peer"
     try:
         cmd = unpack_command(data, key)
     except Unauthenticated:
-        return "unauthenticated"
+        return None, "unauthenticated"
     except ValueError:
-        return "malformed"
-    return None if math.isfinite(cmd.value) else "nonfinite"
+        return None, "malformed"
+    return (cmd, None) if math.isfinite(cmd.value) else (None, "nonfinite")
 
 
 @dataclass(frozen=True)
@@ -107,7 +110,8 @@ def serve(
             if left <= 0 or not select.select([sock], [], [], left)[0]:
                 raise TimeoutError(f"no controller datagram within {STARTUP_S} s on {address}")
             data, sender = sock.recvfrom(64)
-            if (why := refusal(data, sender, controller, key)) is None:
+            _, why = take_command(data, sender, controller, key)
+            if why is None:
                 break
             rejected[why] += 1
         t0 = time.perf_counter()
@@ -132,10 +136,10 @@ def serve(
                     break
                 data, sender = sock.recvfrom(64)
                 # only the controller it was given commands it, with a well-formed, finite command
-                if (why := refusal(data, sender, controller, key)) is not None:
+                cmd, why = take_command(data, sender, controller, key)
+                if cmd is None:
                     rejected[why] += 1
                     continue
-                cmd = unpack_command(data, key)
                 if cmd.flags == STOP:
                     stopped = True
                     break

@@ -334,7 +334,7 @@ def test_a_keyed_datagram_is_taken_only_whole_and_with_its_key(tmp_path):
     """With a shared key each datagram ends with a 16-byte HMAC-SHA-256 tag: any changed bit, a missing
     tag or another key is Unauthenticated (the loop's "unauthenticated" refusal, the drive's too)."""
     from frictiongym.agents.deploy.drive_loop import accept
-    from frictiongym.envs.virtual_drive import refusal
+    from frictiongym.envs.virtual_drive import take_command
 
     key, other = b"k" * 32, b"o" * 32
     data = proto.pack_readings(3, 0.5, [0.25], key)
@@ -355,9 +355,11 @@ def test_a_keyed_datagram_is_taken_only_whole_and_with_its_key(tmp_path):
     )
     assert accept(proto.pack_readings(0, 0.0, [0.0], key), drive, drive, 1, None, 3, 10, key)[1] is None
     command = proto.pack_command(0, 0.0, proto.RUN, 1.0, key)
-    assert refusal(command, drive, drive, key) is None
-    assert refusal(proto.pack_command(0, 0.0, proto.RUN, 1.0), drive, drive, key) == "unauthenticated"
-    assert refusal(proto.pack_command(0, 0.0, proto.RUN, float("inf"), key), drive, drive, key) == "nonfinite"
+    assert take_command(command, drive, drive, key)[1] is None
+    assert take_command(proto.pack_command(0, 0.0, proto.RUN, 1.0), drive, drive, key)[1] == "unauthenticated"
+    assert take_command(proto.pack_command(0, 0.0, proto.RUN, float("inf"), key), drive, drive, key)[1] == (
+        "nonfinite"
+    )
 
 
 def test_the_key_file_and_the_network_are_checked_on_the_command_line(tmp_path, capsys):
