@@ -4,9 +4,10 @@ interpreter lock), run several times in a row on loopback (frictiongym rehearse)
 
 Each rehearsal's figures: the loop's periods and stop, its deadline misses (answers later than half a
 period after their readings arrived), the compute per period (median, 99th percentile) split into the
-controller's step, the send call (on loopback the kernel's delivery, waking the drive's process) and the
-loop's own overhead (the rest), the commands missing at the drive
-(held there), and the tracking error over the log (mean and max |r - y|, the tracked output's unit).
+controller's step, the send call (on loopback the kernel's delivery: it wakes the drive's process unless
+the drive polls for its command, virtual_drive.serve's poll_s) and the loop's own overhead (the rest),
+the commands missing at the drive (held there), and the tracking error over the log (mean and max
+|r - y|, the tracked output's unit).
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ import multiprocessing
 import queue
 import socket
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -50,7 +51,6 @@ def rehearse(
     seed: int = 0,
     backend: str = "numpy",
     limits: dict[str, Any] | None = None,
-    done: Callable[[dict[str, Any]], None] | None = None,
     poll_s: float | None = None,
 ) -> Iterator[dict[str, Any]]:
     """`runs` rehearsals of duration_s each, one after another, each against a new virtual drive of the
@@ -85,10 +85,7 @@ def rehearse(
             process.join(30)
             if process.is_alive():
                 process.kill()
-        run = {"run": i, **summary(loop, at_drive, log)}
-        if done is not None:
-            done(run)
-        yield run
+        yield {"run": i, **summary(loop, at_drive, log)}
 
 
 def summary(loop: dict[str, Any], drive: dict[str, Any], log: Path) -> dict[str, Any]:
