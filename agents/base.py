@@ -152,25 +152,27 @@ def physical_actions(
     """PhysicalController.act for observation rows of one scenario at once: every row's tracked reading,
     reference and preview (their observation columns, found once at the lockstep's reset) decoded in one
     operation per block (decode_observation's arithmetic: float32 times the output scale, so each row's
-    values are those it decodes alone, bit for bit), then each episode's own command() in physical units;
-    the actions as one (rows, 1) float32 array."""
+    values are those it decodes alone, bit for bit), then each episode's own command() in physical units,
+    on the readings as Python floats (float64 arithmetic); the actions as one (rows, 1) float32 array."""
     sc = controllers[0].sc
     sensor, reference, preview = columns
     s = sc.output_scale
-    ys = obs[:, sensor] * s
-    refs = obs[:, reference] * s
+    ys = (obs[:, sensor] * s).tolist()
+    refs = (obs[:, reference] * s).tolist()
     previews = obs[:, preview] * s
     out = np.empty((len(rows), 1), dtype=np.float32)
     scale = sc.action_scale
     for j, r in enumerate(rows.tolist()):
         c = controllers[r]
         c.preview = previews[j]
-        out[j, 0] = c.command(ys[j], float(refs[j])) / scale
+        out[j, 0] = c.command(ys[j], refs[j]) / scale
     return out
 
 
 class PhysicalController(Controller):
-    """A controller written in physical units: implement command(reading, reference) -> V or N·m."""
+    """A controller written in physical units: implement command(reading, reference) -> V or N·m. The
+    reading and the reference are Python floats (the observation's float32 values, decoded), so the
+    controller computes in float64 as a drive's floating-point controller does."""
 
     def reset(self, ctx: EpisodeContext) -> None:
         self.ctx = ctx
@@ -190,7 +192,7 @@ class PhysicalController(Controller):
     def act(self, obs: np.ndarray) -> np.ndarray:
         d = decode_observation(self.sc, obs, trusted=True)  # the env's own observation
         self.preview = d["preview"]  # r(t_{k+1}) ... r(t_{k+P}), for loops with feed-forward
-        u = self.command(d["sensors"][self.sensor], d["reference"])
+        u = self.command(float(d["sensors"][self.sensor]), d["reference"])
         return np.array([u / self.sc.action_scale], dtype=np.float32)
 
     @abstractmethod

@@ -64,8 +64,9 @@ MAXWELL_SLIP_LENGTHS = (1.0 / 3.0, 1.0, 3.0, 9.0)
 
 def stribeck(fc: float, fs: float, vs: float, v: float | np.ndarray) -> float | np.ndarray:
     """g(v) = Fc + (Fs - Fc)·exp(-(v/vs)²) (N·m), Iurian et al. 2005 eq. (2): levels in N·m, velocities in
-    rad/s."""
-    return fc + (fs - fc) * np.exp(-((v / vs) ** 2))
+    rad/s. The square is a product, so a number and an array give the same bits."""
+    x = v / vs
+    return fc + (fs - fc) * np.exp(-(x * x))
 
 
 @dataclass(frozen=True)
