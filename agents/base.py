@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import copy
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
 from typing import Any, ClassVar
 
 import numpy as np
@@ -23,11 +23,14 @@ class EpisodeContext:
     scenario: sampling period, scales, reference generator, tracked sensor (public task description).
     plant: the *nominal* plant preset (document values), not the episode's randomised truth.
     knowledge: controller-specific assumptions, e.g. static friction bounds (configs/controllers.yaml).
+    episodes: how many episodes of the scenario a controller that steps arrays (Controller.steps_arrays)
+    acts on at once (the lockstep's); every other controller acts on one.
     """
 
     scenario: Scenario
     plant: PlantSpec
     knowledge: dict[str, Any] = field(default_factory=dict)
+    episodes: int = 1
 
 
 class Controller(ABC):
@@ -42,6 +45,7 @@ class Controller(ABC):
     reads_truth: ClassVar[bool] = False  # the evaluation loop calls observe_truth before every act
     sensor_kinds: ClassVar[tuple[str, ...]] = ("encoder", "tacho")
     tasks: ClassVar[tuple[str, ...]] = TASKS
+    steps_arrays: ClassVar[bool] = False  # act_episodes acts on ctx.episodes episodes at once
 
     def why_not(self, scenario: Scenario) -> str | None:
         """None if this controller is defined for the scenario, else a one-line reason."""
@@ -83,6 +87,11 @@ class Controller(ABC):
     def act(self, obs: np.ndarray) -> np.ndarray:
         """Action for the observation at this sampling instant."""
 
+    def act_episodes(self, obs: np.ndarray) -> np.ndarray:
+        """With steps_arrays: the actions (n, 1) float32 of the ctx.episodes episodes it was reset for,
+        from their observation rows (n, d), each row's what the episode gets alone (act is n = 1)."""
+        raise NotImplementedError(f"{self.name} acts on one episode at a time")
+
     def params(self) -> dict[str, Any]:
         """The controller's own parameters (for reports)."""
         return {}
@@ -100,34 +109,46 @@ class Controller(ABC):
         return 1.0
 
     def lockstep(self, n: int) -> Lockstep:
-        """The controller for n episodes of one scenario run together (evaluate.run_episodes): this one
-        for the first and a deep copy for each other, each acting on its own episode's observation. A
-        controller that can act on every episode in one call overrides it (LearnedPolicy: one network
-        call)."""
-        return Lockstep([self, *(copy.deepcopy(self) for _ in range(n - 1))])
+        """The controller for n episodes of one scenario run together (evaluate.run_episodes): this one,
+        acting on every episode at once if it acts through one that steps arrays (Controller.acting), else
+        this one for the first episode and a deep copy for each other. A controller that acts on every
+        episode in one call of its own overrides it (LearnedPolicy: one network call)."""
+        return Lockstep(self, n)
 
 
 class Lockstep:
-    """One controller per episode for n episodes stepped together: row i of an observation array is
-    episode i's observation, and each episode's action is what its own controller gives for it alone.
-    Where every episode's acting controller (Controller.acting) acts through command() alone
-    (PhysicalController's act), the rows are decoded at once (physical_actions)."""
+    """n episodes of one scenario stepped together: row i of an observation array is episode i's
+    observation, and each episode's action is what it gets alone. Where the controller acts through one
+    that steps arrays (Controller.acting, known after reset), that one acts on every row in one call;
+    otherwise each episode has its own controller (`first` for the first, `other()` for each other; a deep
+    copy unless given), and where each of those acts through command() alone (PhysicalController's act),
+    the rows are decoded at once (physical_actions)."""
 
-    def __init__(self, controllers: Sequence[Controller]):
-        self.controllers = list(controllers)
-        self.reads_truth = self.controllers[0].reads_truth
+    def __init__(self, first: Controller, n: int, other: Callable[[], Controller] | None = None):
+        self.first, self.n = first, n
+        self.other = other or (lambda: copy.deepcopy(first))
+        self.controllers = [first]
+        self.reads_truth = first.reads_truth
+        self.array: Controller | None = None
         self.physical: list[PhysicalController] | None = None
 
     def reset(self, ctx: EpisodeContext) -> None:
         """Every episode's start (they share a scenario and a design plant)."""
-        for c in self.controllers:
+        self.first.reset(replace(ctx, episodes=self.n))
+        actor = self.first.acting()
+        if actor.steps_arrays:
+            self.array, self.full = actor, None
+            return
+        self.array = None
+        if self.n > 1:  # a controller of one episode: reset for one
+            self.first.reset(ctx)
+        self.controllers = [self.first, *(self.other() for _ in range(self.n - 1))]
+        for c in self.controllers[1:]:
             c.reset(ctx)
         actors = [c.acting() for c in self.controllers]
-        if all(isinstance(a, PhysicalController) and type(a).act is PhysicalController.act for a in actors):
+        if all(acts_by_command(a) for a in actors):
             self.physical = actors
-            sc, lay = ctx.scenario, ctx.scenario.layout
-            sensor = lay.slice("sensors").start + sc.spec.sensor_names.index(actors[0].sensor)
-            self._columns = (sensor, lay.slice("reference").start, lay.slice("preview"))
+            self._columns = observation_columns(ctx.scenario, actors[0].sensor)
         else:
             self.physical = None
 
@@ -137,10 +158,40 @@ class Lockstep:
 
     def act(self, obs: np.ndarray, rows: np.ndarray) -> list[Any] | np.ndarray:
         """The actions of episodes `rows` for their observations (one row each), as each controller
-        returns it (or, decoded at once, one (rows, 1) float32 array of the same values)."""
+        returns it (or, decoded at once, one (rows, 1) float32 array of the same values). An array
+        controller acts on every episode: one that has ended keeps its last observation, and its action
+        is dropped."""
+        if self.array is not None:
+            if len(rows) == self.n:
+                self.full = obs
+                return self.array.act_episodes(obs)
+            self.full = self.full.copy()
+            self.full[rows] = obs
+            return self.array.act_episodes(self.full)[rows]
         if self.physical is not None:
             return physical_actions(self.physical, self._columns, obs, rows)
         return [self.controllers[r].act(o) for r, o in zip(rows, obs, strict=True)]
+
+    def shares(self, rows: np.ndarray) -> np.ndarray:
+        """As a residual's base: each episode's residual_share at its last act, (rows, 1)."""
+        if self.array is not None:
+            share = np.broadcast_to(np.asarray(self.first.residual_share(), dtype=np.float64), (self.n,))
+            return share[rows][:, None]
+        return np.array([[self.controllers[r].residual_share()] for r in rows])
+
+
+def acts_by_command(controller: Controller) -> bool:
+    """Whether the controller's act() is PhysicalController's: decode, then command() on one episode."""
+    if not isinstance(controller, PhysicalController) or controller.steps_arrays:
+        return False
+    return type(controller).act in (PhysicalController.act, ArrayController.act)
+
+
+def observation_columns(scenario: Scenario, sensor: str) -> tuple[int, int, slice]:
+    """The observation's columns of the tracked reading, the reference and the preview."""
+    lay = scenario.layout
+    start = lay.slice("sensors").start + scenario.spec.sensor_names.index(sensor)
+    return start, lay.slice("reference").start, lay.slice("preview")
 
 
 def physical_actions(
@@ -167,6 +218,20 @@ def physical_actions(
         c.preview = previews[j]
         out[j, 0] = c.command(ys[j], refs[j]) / scale
     return out
+
+
+def array_actions(controller: ArrayController, obs: np.ndarray) -> np.ndarray:
+    """ArrayController.act for the observation rows of every episode it acts on: the readings, references
+    and previews decoded as physical_actions decodes them, one command() call, the actions (n, 1)
+    float32: each row's the same as the episode's alone."""
+    sc = controller.sc
+    sensor, reference, preview = controller.columns
+    s = sc.output_scale
+    y = (obs[:, sensor] * s).astype(np.float64)
+    r = (obs[:, reference] * s).astype(np.float64)
+    controller.preview = obs[:, preview] * s
+    u = controller.commands(y, r)
+    return (u / sc.action_scale).astype(np.float32)[:, None]
 
 
 class PhysicalController(Controller):
@@ -200,6 +265,60 @@ class PhysicalController(Controller):
         """Command (V or N·m) from the tracked reading y and the reference r."""
 
 
+class ArrayController(PhysicalController):
+    """A loop in physical units that acts on every episode of a lockstep at once: commands(y, r) takes the
+    tracked readings and references of the ctx.episodes episodes as float64 arrays (n,), with the previews
+    in self.preview (n, P), and returns the n commands; its state holds the episode axis first. Each
+    row's arithmetic is the float64 operations a scalar loop would do for that episode alone (math's
+    functions where numpy's differ in the last bit: elementwise), so no row depends on another and one
+    episode is n = 1.
+
+    command(y, r) is the same loop on one episode's floats (reset for one), for a controller that uses it
+    inside its own per-episode code (a plug-in's PID). A subclass that overrides command() is written for
+    one episode (PhysicalController's contract) and runs as one, a copy per episode."""
+
+    steps_arrays: ClassVar[bool] = True
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        cls.steps_arrays = cls.command is ArrayController.command
+
+    def reset(self, ctx: EpisodeContext) -> None:
+        self.episodes = ctx.episodes  # start() sizes the state arrays by it
+        super().reset(ctx)
+        self.columns = observation_columns(self.sc, self.sensor)
+
+    def act(self, obs: np.ndarray) -> np.ndarray:
+        if not self.steps_arrays:  # a subclass's command() for one episode
+            return super().act(obs)
+        return array_actions(self, obs[None])[0]
+
+    def act_episodes(self, obs: np.ndarray) -> np.ndarray:
+        return array_actions(self, obs)
+
+    @abstractmethod
+    def commands(self, y: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Commands (V or N·m), (n,), from the tracked readings y and the references r, (n,)."""
+
+    def command(self, y: float, r: float) -> float:
+        """The command (V or N·m) of one episode's loop (reset for one) from its reading and reference;
+        the preview, where set, is the episode's (P,)."""
+        flat = getattr(self, "preview", None)
+        if flat is not None:
+            self.preview = np.reshape(flat, (1, -1))
+        try:
+            return float(self.commands(np.array([y], dtype=float), np.array([r], dtype=float))[0])
+        finally:
+            if flat is not None:
+                self.preview = flat
+
+
+def elementwise(f: Callable[[float], float], x: np.ndarray) -> np.ndarray:
+    """f (a math function) on each element of x, float64: the values a scalar loop gets (numpy's own
+    exp and tanh differ from math's in the last bit on some arguments)."""
+    return np.fromiter(map(f, x.tolist()), dtype=np.float64, count=x.size).reshape(x.shape)
+
+
 def drive_friction_reason(scenario: Scenario) -> str | None:
     """Why a friction compensator cannot act on the scenario's drive joint (no friction there), or None."""
     if scenario.spec.drive_friction is None:
@@ -215,9 +334,13 @@ class Zero(Controller):
     episode, s = 1 - m / m_Zero, measures a controller against it on the same episode."""
 
     name: ClassVar[str] = ZERO
+    steps_arrays: ClassVar[bool] = True
 
     def reset(self, ctx: EpisodeContext) -> None:
-        self.action = np.zeros(1, dtype=np.float32)
+        pass
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        return self.action
+        return np.zeros(1, dtype=np.float32)
+
+    def act_episodes(self, obs: np.ndarray) -> np.ndarray:
+        return np.zeros((len(obs), 1), dtype=np.float32)

@@ -137,7 +137,7 @@ def test_lugre_observer_estimate_converges_to_the_sliding_friction():
     c.reset(EpisodeContext(sc, sc.spec, {}))
     v = 0.3
     for _ in range(50):
-        F = c.friction_estimate(v, 0.0)
+        F = c.friction_estimate(one(v), one(0.0))[0]
     assert pytest.approx(-c.p.steady_state(v) + c.p.bias, rel=1e-6) == F
 
 
@@ -150,9 +150,9 @@ def test_lugre_observer_update_keeps_its_state_at_vanishing_speeds():
     c = LuGreObserver()
     sc = load_scenario("m220_reversal_tracking")
     c.reset(EpisodeContext(sc, sc.spec, {}))
-    c.z = 1e-3
-    c.friction_estimate(1e-290, 1e-2)
-    assert c.z == pytest.approx(1e-3 - c.k_obs * 1e-2 * c.h, rel=1e-12)
+    c.z = one(1e-3)
+    c.friction_estimate(one(1e-290), one(1e-2))
+    assert c.z[0] == pytest.approx(1e-3 - c.k_obs * 1e-2 * c.h, rel=1e-12)
 
 
 def test_lugre_observer_velocity_filter_is_a_first_order_lag_and_off_for_the_baseline():
@@ -166,11 +166,11 @@ def test_lugre_observer_velocity_filter_is_a_first_order_lag_and_off_for_the_bas
         c.reset(EpisodeContext(sc, sc.spec, {}))
     assert raw.observer.velocity_filter_s == 0.0
     h = raw.h
-    assert raw.velocity(0.0, None) == filt.velocity(0.0, None) == 0.0
-    assert raw.velocity(1e-3, 0.0) == pytest.approx(0.2)
-    assert filt.velocity(1e-3, 0.0) == pytest.approx(0.2 * (1 - math.exp(-h / 0.01)))
+    assert raw.velocity(one(0.0), None)[0] == filt.velocity(one(0.0), None)[0] == 0.0
+    assert raw.velocity(one(1e-3), one(0.0))[0] == pytest.approx(0.2)
+    assert filt.velocity(one(1e-3), one(0.0))[0] == pytest.approx(0.2 * (1 - math.exp(-h / 0.01)))
     for _ in range(round(0.1 / h)):  # ten time constants at a steady 0.2 rad/s
-        v = filt.velocity(1e-3, 0.0)
+        v = filt.velocity(one(1e-3), one(0.0))[0]
     assert v == pytest.approx(0.2, rel=1e-4)
 
 
@@ -219,6 +219,11 @@ def _fresh(controller, scenario: str):
     sc = load_scenario(scenario)
     controller.reset(EpisodeContext(sc, sc.spec, {}))
     return controller
+
+
+def one(x: float) -> np.ndarray:
+    """One episode's value, as an array controller takes it."""
+    return np.array([x], dtype=float)
 
 
 def schedule(**options):
@@ -279,10 +284,10 @@ def test_speed_scheduled_holds_a_motions_weight_and_decays_it_over_hold_s():
     s, h = c.s, c.h
     v0 = 2 * s.speed_high
     for k in range(10):
-        assert c.weight(v0 * h * k) == (0.0 if k == 0 else 1.0)
+        assert c.weight(one(v0 * h * k))[0] == (0.0 if k == 0 else 1.0)
     stop = v0 * h * 9
     t_low = s.hold_s * math.log(v0 / s.speed_low)  # s
-    ws = [c.weight(stop) for _ in range(int(2 * t_low / h))]
+    ws = [c.weight(one(stop))[0] for _ in range(int(2 * t_low / h))]
     t = h * np.arange(1, len(ws) + 1)
     expected = np.clip((v0 * np.exp(-t / s.hold_s) - s.speed_low) / (s.speed_high - s.speed_low), 0, 1)
     np.testing.assert_allclose(ws, expected, atol=1e-12)
@@ -308,7 +313,7 @@ def test_a_pid_told_its_share_integrates_only_that_share():
         c = _fresh(PID(), "m220_reversal_tracking")
         c.authority(share)
         c.command(0.0, 1e-3)  # e = 1 mrad, far from saturation
-        assert c.i_term == share * c.gains.ki * 1e-3 * c.h
+        assert c.i_term[0] == share * c.gains.ki * 1e-3 * c.h
     a, b = _fresh(PID(), "m220_reversal_tracking"), _fresh(PID(), "m220_reversal_tracking")
     b.authority(1.0)
     ys = np.cumsum(np.random.default_rng(1).normal(0, 1e-3, 100))
@@ -329,12 +334,12 @@ def test_the_bumpless_schedule_holds_the_low_loops_integral_while_the_high_loop_
 
     rest = np.full(100, 0.3)
     assert commands(plain, rest) == commands(bumpless, rest)
-    held = bumpless.low.i_term
+    held = bumpless.low.i_term[0]
     assert held != 0.0
     fast = 0.3 + 1.5 * plain.s.speed_high * plain.h * np.arange(1, 101)
     # the observer's command: PID's integrator does not reach the output at w = 1
     assert commands(plain, fast) == commands(bumpless, fast)
-    assert bumpless.low.i_term == held and plain.low.i_term != held
+    assert bumpless.low.i_term[0] == held and plain.low.i_term[0] != held
 
 
 def test_the_bumpless_schedule_cuts_the_reversal_peak_on_a_validation_episode():

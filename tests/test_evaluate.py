@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from frictiongym.agents import registry
+from frictiongym.agents.base import EpisodeContext
 from frictiongym.agents.evaluation.engine import Job, run_chunk
 from frictiongym.agents.evaluation.evaluate import (
     EnvCache,
@@ -17,6 +18,7 @@ from frictiongym.agents.evaluation.evaluate import (
     run_episode,
     run_episodes,
 )
+from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import Episode
 
 HEADLINE = ("agents/models/specialist",)
@@ -50,6 +52,9 @@ def assert_same(a: EpisodeResult, b: EpisodeResult) -> None:
         ("RDFC", "kang_regulation", None),  # a switching compensator with its own state
         ("LuGreObserver", "kang_drift", 6.0),  # friction drifting within the episode
         ("SF+relay", "flexible_zero_speed", None),  # an observer and the analog rate loop's hardware
+        ("Cascade+MFF", "emps_tracking", 4.0),  # the feed-forward's reference window, a filtered cascade
+        ("ILC", "m220_reversal_tracking_slow", 25.0),  # learns at the end of each 20 s period
+        ("MFF+DOB", "flexible_speed_reversal", 4.0),  # the two-mass feed-forward and the observer
         ("ResSAC-m220_reversal_tracking-s0", "m220_reversal_tracking", 4.0),  # residual, normaliser
         ("ResSAC-kang_regulation-s1", "kang_regulation_coarse", None),
     ],
@@ -69,6 +74,22 @@ def test_episodes_stepped_together_equal_each_episode_run_alone(name, scenario, 
     for a, b in zip(alone, together, strict=True):
         assert_same(a, b)
     assert len({r.metrics["iae"] for r in together}) == len(episodes)  # five different episodes
+
+
+def test_an_array_controllers_rows_after_an_episode_ends_are_the_rows_without_it():
+    """A controller that steps arrays acts on every episode it was reset for; once an episode has ended
+    (its row is no longer asked for), the others' actions are those of a lockstep that never had it."""
+    sc = load_scenario("emps_tracking")
+    rng = np.random.default_rng(0)
+    three, two = registry.make("Cascade+MFF").lockstep(3), registry.make("Cascade+MFF").lockstep(2)
+    three.reset(EpisodeContext(sc, sc.spec))
+    two.reset(EpisodeContext(sc, sc.spec))
+    obs = np.zeros((3, sc.layout.size), dtype=np.float32)
+    for k in range(50):
+        obs = obs + rng.normal(0, 1e-4, obs.shape).astype(np.float32)
+        rows = np.arange(3) if k < 20 else np.array([0, 2])  # episode 1 ends after 20 periods
+        got = three.act(obs[rows], rows)
+        np.testing.assert_array_equal(got[rows != 1], two.act(obs[[0, 2]], np.arange(2)))
 
 
 def test_evaluate_orders_results_by_episode_then_controller_and_skips_the_inapplicable():

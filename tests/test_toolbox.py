@@ -68,7 +68,7 @@ def feedforward_tracking_error(h: float) -> float:
     err = 0.0
     for k in range(n):
         err = max(err, abs(r[k] - plant.x))
-        plant.step(ff.command(r[k], r[k + 1 : k + 6]))
+        plant.step(ff.command(np.array([r[k]]), r[None, k + 1 : k + 6])[0])
     return err
 
 
@@ -89,8 +89,8 @@ def test_feedforward_two_mass_inverse_moves_the_load_with_the_motor():
     gain = ctx.plant.sensors[0].gain
     w = 5.0  # rad/s
     for _ in range(20000):  # 800 s: the soft shaft (k = 0.0024 N·m/rad) settles slowly
-        u = ff.command(w * gain, np.zeros(0))
-    w2, _ = ff.x
+        u = ff.command(np.array([w * gain]), np.zeros((1, 0)))[0]
+    w2, _ = ff.x[0]
     assert w2 == pytest.approx(w, rel=1e-6)
     d1, d2 = (j.viscous for j in ctx.plant.joints)
     friction = sum(j.friction.fc for j in ctx.plant.joints)  # Coulomb on both shafts (smooth sign ~ 1)
@@ -112,7 +112,7 @@ def test_disturbance_observer_estimates_a_constant_load_with_its_q_filter():
     for _ in range(400):
         u = dob.command(plant.x, 0.0)
         plant.step(u, d0)
-        est.append(dob.d_hat)
+        est.append(dob.d_hat[0])
     k = np.arange(len(est))
     expected = d0 * (1 - a ** np.maximum(k - 1, 0))  # the first estimate needs two differences
     assert np.allclose(est[2:], expected[2:], rtol=1e-9, atol=1e-9)
@@ -159,7 +159,9 @@ def test_adaptive_coulomb_level_converges_at_its_rate():
         c.preview = r[k + 1 : k + 6]
         u = c.command(plant.x, r[k])
         plant.step(u - true * math.copysign(1.0, plant.v) if plant.v else u)
-    assert c.level == pytest.approx(true, rel=0.03)  # e^-6 of the initial error, and the encoder's rounding
+    assert c.level[0] == pytest.approx(
+        true, rel=0.03
+    )  # e^-6 of the initial error, and the encoder's rounding
 
 
 def test_adaptive_coulomb_is_for_drifting_friction():
@@ -229,7 +231,7 @@ def test_drive_friction_of_the_feedforward_is_the_presets():
     h, v = ctx.scenario.control_period, 2.0  # rad/s, far above the smoothing width
     r = v * h * np.arange(10)
     for k in range(3):
-        ff.command(r[k], r[k + 1 : k + 6])
+        ff.command(r[k : k + 1], r[None, k + 1 : k + 6])
     df = drive_friction(ctx.plant)
     assert ff.c / ctx.plant.actuator_gain == pytest.approx(df.viscous)  # the linear part, fed apart
-    assert ff.friction == pytest.approx(df.coulomb_pos, rel=1e-6)  # Stribeck gone at 34 v_s
+    assert ff.friction[0] == pytest.approx(df.coulomb_pos, rel=1e-6)  # Stribeck gone at 34 v_s

@@ -710,9 +710,9 @@ def test_each_residual_gate_grants_its_share():
     for r in refs:
         for g, c in cs.items():
             c.command(r, r)
-            shares[g].append(c.residual_share())
-        ws.append(cs["none"].w)
-        rest.append(cs["rest"].at_rest)
+            shares[g].append(float(np.broadcast_to(c.residual_share(), (1,))[0]))
+        ws.append(float(cs["none"].w[0]))
+        rest.append(bool(cs["rest"].at_rest[0]))
     floor = cs["floor"].s.residual_floor
     assert floor == 0.5 and shares["none"] == [1.0] * len(refs)
     assert shares["motion"] == ws and 0.0 < max(ws[:1801]) < 0.2 and max(ws[2000:]) == 1.0

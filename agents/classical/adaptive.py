@@ -14,10 +14,11 @@ over the episode is followed: it is defined on the scenarios whose friction drif
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import cache
 from typing import Any, ClassVar
+
+import numpy as np
 
 from frictiongym.envs.plants.identified import drive_friction
 from frictiongym.envs.scenario import Scenario
@@ -92,41 +93,44 @@ class AdaptiveCoulomb(PIDModelFF):
         self.min_speed = e.min_speed_per_s
         nominal = drive_friction(spec)
         self.level0 = 0.5 * (nominal.coulomb_pos + nominal.coulomb_neg)  # command units
-        self.level = self.level0
-        self.z: float | None = None
-        self.x_prev: float | None = None
-        self.v_prev = 0.0
-        self.u_prev = 0.0
+        n = self.episodes
+        self.level = np.full(n, self.level0)
+        self.z = np.zeros(n)
+        self.anchored = np.zeros(n, dtype=bool)  # whether z holds an estimate (re-anchored at each motion)
+        self.x_prev: np.ndarray | None = None
+        self.v_prev = np.zeros(n)
+        self.u_prev = np.zeros(n)
 
-    def adapt(self, v: float) -> None:
-        """The Friedland-Park update over the last period, at the velocity v (drive units/s) read now."""
-        moving = abs(v) > self.min_speed and abs(self.v_prev) > self.min_speed and v * self.v_prev > 0
-        if not moving:
-            self.z = None  # hold â; re-anchored at the next motion
-            return
-        if self.z is None:
-            self.z = self.level + self.k_obs * abs(self.v_prev)
-        s = math.copysign(1.0, v)
-        drive = self.u_prev - self.level * s - self.c_over_b * self.v_prev
-        self.z += self.h * self.k_obs * s * self.rate_b_over_j * drive
-        self.level = min(MAX_LEVEL_RATIO * self.level0, max(0.0, self.z - self.k_obs * abs(v)))
+    def adapt(self, v: np.ndarray) -> None:
+        """The Friedland-Park update over the last period, at the velocities v (drive units/s) read now."""
+        vp = self.v_prev
+        moving = (np.abs(v) > self.min_speed) & (np.abs(vp) > self.min_speed) & (v * vp > 0)
+        z = np.where(self.anchored, self.z, self.level + self.k_obs * np.abs(vp))
+        s = np.copysign(1.0, v)
+        drive = self.u_prev - self.level * s - self.c_over_b * vp
+        z = z + self.h * self.k_obs * s * self.rate_b_over_j * drive
+        level = np.minimum(MAX_LEVEL_RATIO * self.level0, np.maximum(0.0, z - self.k_obs * np.abs(v)))
+        # at rest â holds and the estimate is dropped, to be re-anchored at the next motion
+        self.z, self.anchored = np.where(moving, z, 0.0), moving
+        self.level = np.where(moving, level, self.level)
 
-    def feedforward(self, r: float) -> float:
+    def feedforward(self, r: np.ndarray) -> np.ndarray:
         u = super().feedforward(r)
         return u + (self.level / self.level0 - 1.0) * self.ff.friction
 
-    def command(self, y: float, r: float) -> float:
+    def commands(self, y: np.ndarray, r: np.ndarray) -> np.ndarray:
         x = y / self.gain
         if self.speed:
             v = x
         else:
-            v = 0.0 if self.x_prev is None else (x - self.x_prev) / self.h
+            v = np.zeros_like(x) if self.x_prev is None else (x - self.x_prev) / self.h
             self.x_prev = x
         self.adapt(v)
         self.v_prev = v
-        u = super().command(y, r)
+        u = super().commands(y, r)
         self.u_prev = u
         return u
 
     def params(self) -> dict[str, Any]:
-        return {**super().params(), "coulomb_level": getattr(self, "level", None)}
+        level = getattr(self, "level", None)  # the first episode's adapted level at the end of its run
+        return {**super().params(), "coulomb_level": None if level is None else float(level[0])}

@@ -31,6 +31,8 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any, ClassVar
 
+import numpy as np
+
 from frictiongym.envs.scenario import TRACKING, Scenario
 
 from .. import settings as cfg
@@ -109,14 +111,15 @@ class DisturbanceObserver(PID):
             self.J, self.c, _ = rigid_position_plant(spec)
         self.b, self.gain = spec.actuator_gain, sensor.gain
         self.a = math.exp(-self.h / e.q_time_constant_s)
-        self.readings: list[float] = []  # y(k-2), y(k-1) in drive units
-        self.u_prev = [0.0, 0.0]  # u(k-1), u(k-2): the commands applied (saturated)
-        self.d_hat = 0.0  # N·m (N on a carriage)
+        self.readings: list[np.ndarray] = []  # y(k-2), y(k-1) in drive units
+        zero = np.zeros(self.episodes)
+        self.u_prev = [zero, zero]  # u(k-1), u(k-2): the commands applied (saturated)
+        self.d_hat = zero  # N·m (N on a carriage)
         tracking = self.with_feedforward and ctx.scenario.task == TRACKING
         self.ff = ModelFeedForward(ctx, self.ff_settings.of(spec.name)) if tracking else None
 
-    def estimate(self, x: float) -> float:
-        """d̂ after the reading x (drive units: rad, m or rad/s), from the commands applied before it."""
+    def estimate(self, x: np.ndarray) -> np.ndarray:
+        """d̂ after the readings x (drive units: rad, m or rad/s), from the commands applied before them."""
         T, (u1, u2) = self.h, self.u_prev
         self.readings = [*self.readings[-2:], x]
         if self.speed and len(self.readings) >= 2:
@@ -130,7 +133,7 @@ class DisturbanceObserver(PID):
         self.d_hat = self.a * self.d_hat + (1.0 - self.a) * raw
         return self.d_hat
 
-    def command(self, y: float, r: float) -> float:
+    def commands(self, y: np.ndarray, r: np.ndarray) -> np.ndarray:
         d_hat = self.estimate(y / self.gain)
         ff = self.ff.command(r, self.preview) if self.ff is not None else 0.0
         u = self.feedback(y, r, ff - d_hat / self.b)

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+import numpy as np
+
 from frictiongym.envs.scenario import TRACKING, Scenario
 
 from ..base import EpisodeContext, drive_friction_reason
@@ -31,16 +33,18 @@ class CoulombViscousFF(PID):
     def start(self, ctx: EpisodeContext) -> None:
         super().start(ctx)
         self.p = ctx.plant.drive_friction
-        self.r_prev: float | None = None
+        self.levels = self.p.levels()
+        self.r_prev: np.ndarray | None = None
 
-    def command(self, y: float, r: float) -> float:
-        vr = 0.0 if self.r_prev is None else (r - self.r_prev) / self.h
+    def commands(self, y: np.ndarray, r: np.ndarray) -> np.ndarray:
+        vr = np.zeros_like(r) if self.r_prev is None else (r - self.r_prev) / self.h
         self.r_prev = r
-        u_fb = super().command(y, r)
-        lv = self.p.levels()
-        ff = (lv["coulomb_pos"] if vr > 0 else -lv["coulomb_neg"] if vr < 0 else 0.0) + self.p.sigma2 * vr
+        u_fb = super().commands(y, r)
+        lv = self.levels
+        coulomb = np.where(vr > 0, lv["coulomb_pos"], np.where(vr < 0, -lv["coulomb_neg"], 0.0))
+        ff = coulomb + self.p.sigma2 * vr
         limit = self.sc.action_scale
-        return max(-limit, min(limit, u_fb + ff / self.ctx.plant.actuator_gain))
+        return np.clip(u_fb + ff / self.ctx.plant.actuator_gain, -limit, limit)
 
 
 class PIDCoulombViscousFF(CoulombViscousFF):

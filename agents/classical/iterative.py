@@ -100,26 +100,27 @@ class IterativeLearning(PIDModelFF):
         self.gamma = e.learning_gain * self.gains.kp
         self.lead = e.lead_steps
         self.window = max(1, 2 * round(e.filter_s / self.h / 2) + 1)  # odd: zero phase
-        self.correction = np.zeros(self.n)
-        self.errors = np.zeros(self.n)
+        self.correction = np.zeros((self.episodes, self.n))  # each episode's stored period
+        self.errors = np.zeros((self.episodes, self.n))
         self.k = 0
 
     def filtered(self, x: np.ndarray) -> np.ndarray:
-        """The zero-phase moving average of a periodic sequence over `window` samples."""
+        """The zero-phase moving average over `window` samples of each row, a periodic sequence."""
         if self.window == 1:
             return x
         half = self.window // 2
-        padded = np.concatenate([x[-half:], x, x[:half]])
-        return np.convolve(padded, np.ones(self.window) / self.window, mode="valid")
+        kernel = np.ones(self.window) / self.window
+        padded = np.concatenate([x[:, -half:], x, x[:, :half]], axis=1)
+        return np.stack([np.convolve(row, kernel, mode="valid") for row in padded])
 
-    def feedforward(self, r: float) -> float:
-        return super().feedforward(r) + self.correction[self.k % self.n]
+    def feedforward(self, r: np.ndarray) -> np.ndarray:
+        return super().feedforward(r) + self.correction[:, self.k % self.n]
 
-    def command(self, y: float, r: float) -> float:
-        self.errors[self.k % self.n] = r - y
-        u = super().command(y, r)
+    def commands(self, y: np.ndarray, r: np.ndarray) -> np.ndarray:
+        self.errors[:, self.k % self.n] = r - y
+        u = super().commands(y, r)
         self.k += 1
         if self.k % self.n == 0:  # a period ended: learn from it
-            learned = self.correction + self.gamma * np.roll(self.errors, -self.lead)
+            learned = self.correction + self.gamma * np.roll(self.errors, -self.lead, axis=1)
             self.correction = self.filtered(learned)
         return u

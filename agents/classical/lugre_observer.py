@@ -10,11 +10,13 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any, ClassVar
 
+import numpy as np
+
 from frictiongym.envs.config import Node
 from frictiongym.envs.scenario import Scenario
 
 from .. import settings as cfg
-from ..base import EpisodeContext, drive_friction_reason
+from ..base import EpisodeContext, drive_friction_reason, elementwise
 from .pid import PID, PIDSettings
 
 # Below this a·h the observer's exact update drive/a + (ẑ - drive/a)·e^{-ah} loses ẑ in the rounding of
@@ -78,18 +80,18 @@ class LuGreObserver(PID):
         if spec.name not in gains:
             raise ValueError(f"no observer gain for plant {spec.name!r}; settings have {sorted(gains)}")
         self.k_obs = gains[spec.name]
-        self.z = 0.0
+        self.z = np.zeros(self.episodes)
         self.k_speed = spec.sensors[self.sc.tracked_sensor].gain if self.speed_loop else 1.0
         tau = self.observer.velocity_filter_s
         self.v_gain = 1.0 - math.exp(-self.h / tau) if tau > 0 else None
-        self.v_f: float | None = None
+        self.v_f: np.ndarray | None = None
 
-    def velocity(self, y: float, y_prev: float | None) -> float:
-        """The velocity the observer runs on (rad/s): measured, then filtered if asked."""
+    def velocity(self, y: np.ndarray, y_prev: np.ndarray | None) -> np.ndarray:
+        """The velocities the observer runs on (rad/s): measured, then filtered if asked."""
         if self.speed_loop:
             v = y / self.k_speed
         elif y_prev is None:
-            v = 0.0
+            v = np.zeros_like(y)
         else:
             v = (y - y_prev) / self.h
         if self.v_gain is None:
@@ -97,29 +99,32 @@ class LuGreObserver(PID):
         self.v_f = v if self.v_f is None else self.v_f + self.v_gain * (v - self.v_f)
         return self.v_f
 
-    def friction_estimate(self, v: float, e: float) -> float:
+    def friction_estimate(self, v: np.ndarray, e: np.ndarray) -> np.ndarray:
         """F̂ (N·m, opposing motion) and the observer update over one period."""
         p, h = self.p, self.h
-        a = p.sigma0 * abs(v) / p.g(v)
+        a = p.sigma0 * np.abs(v) / p.g(v)
         # σ1·ẑ' is left out: from sampled velocities it is a velocity feedback of gain σ1, and h·σ1/J is
         # 17 for the flexible servo's motor at 40 ms (it destabilised the loop, measured); σ0 ẑ + σ2 v remain
         F = p.sigma0 * self.z + p.sigma2 * v
         drive = v - self.k_obs * e
         ah = a * h
-        if ah >= SMALL_DECAY:  # exact for v held over the period
-            self.z = drive / a + (self.z - drive / a) * math.exp(-ah)
-        else:  # the same update as ẑ + drive·h·(1 - e^{-ah})/(ah), which tends to ẑ + drive·h as a → 0
-            self.z = self.z * math.exp(-ah) - drive * h * (math.expm1(-ah) / ah if ah > 0 else -1.0)
+        decay = elementwise(math.exp, -ah)
+        exact = ah >= SMALL_DECAY  # exact for v held over the period
+        with np.errstate(divide="ignore", invalid="ignore"):  # each branch where it applies
+            held = drive / a + (self.z - drive / a) * decay
+            # the same update as ẑ + drive·h·(1 - e^{-ah})/(ah), which tends to ẑ + drive·h as a → 0
+            ratio = np.where(ah > 0, elementwise(math.expm1, -ah) / ah, -1.0)
+        self.z = np.where(exact, held, self.z * decay - drive * h * ratio)
         return F
 
-    def command(self, y: float, r: float) -> float:
+    def commands(self, y: np.ndarray, r: np.ndarray) -> np.ndarray:
         v = self.velocity(y, self.y_prev)
-        u_fb = super().command(y, r)
+        u_fb = super().commands(y, r)
         comp = (
             self.friction_estimate(v, (y - r) / self.k_speed) - self.p.bias
         ) / self.ctx.plant.actuator_gain
         limit = self.sc.action_scale
-        return max(-limit, min(limit, u_fb + comp))
+        return np.clip(u_fb + comp, -limit, limit)
 
     def params(self) -> dict[str, Any]:
         return {

@@ -46,7 +46,7 @@ from frictiongym.envs.plants.identified import speed_ratios
 from frictiongym.envs.scenario import TRACKING, Scenario
 
 from .. import settings as cfg
-from ..base import EpisodeContext, PhysicalController, drive_friction_reason
+from ..base import ArrayController, EpisodeContext, drive_friction_reason, elementwise
 from .design import PIDGains, rigid_position_plant
 from .pid import PID
 
@@ -101,42 +101,45 @@ def tracked_joint_reason(scenario: Scenario) -> str | None:
 
 class ReferenceWindow:
     """The reference samples a controller has seen, r(k-2), r(k-1), r(k), and the preview r(k+1..k+P),
-    with its derivatives at k + lead: central differences where the preview reaches, else backward."""
+    with its derivatives at k + lead: central differences where the preview reaches, else backward. Each
+    row an episode's."""
 
     def __init__(self, h: float):
         self.h = h
-        self.past: list[float] = []
+        self.past: np.ndarray | None = None  # (n, 2): r(k-2), r(k-1)
 
-    def derivatives(self, r: float, preview: np.ndarray, lead: int) -> tuple[float, float, float]:
-        """(value, rate, acceleration) of the reference at k + lead (units, units/s, units/s²)."""
-        if not self.past:
-            self.past = [r, r]
-        s = [*self.past, r, *map(float, preview)]
-        self.past = [self.past[1], r]
-        m = 2 + min(lead, len(s) - 3)  # index of k + lead, leaving room for the backward stencil
+    def derivatives(
+        self, r: np.ndarray, preview: np.ndarray, lead: int
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(value, rate, acceleration) of the references (n,) at k + lead (units, units/s, units/s²), from
+        the references now and their previews (n, P)."""
+        if self.past is None:
+            self.past = np.stack([r, r], axis=1)
+        s = np.concatenate([self.past, r[:, None], preview.astype(np.float64)], axis=1)
+        self.past = s[:, 1:3]
+        m = 2 + min(lead, s.shape[1] - 3)  # index of k + lead, leaving room for the backward stencil
         h = self.h
-        if m + 1 < len(s):
-            return s[m], (s[m + 1] - s[m - 1]) / (2 * h), (s[m + 1] - 2 * s[m] + s[m - 1]) / (h * h)
-        return s[m], (s[m] - s[m - 1]) / h, (s[m] - 2 * s[m - 1] + s[m - 2]) / (h * h)
+        if m + 1 < s.shape[1]:
+            now, ahead, back = s[:, m], s[:, m + 1], s[:, m - 1]
+            return now, (ahead - back) / (2 * h), (ahead - 2 * now + back) / (h * h)
+        now, back, back2 = s[:, m], s[:, m - 1], s[:, m - 2]
+        return now, (now - back) / h, (now - 2 * back + back2) / (h * h)
 
 
-def smooth_friction(spec: PlantSpec, joints: list[str], speeds: list[float], width: float) -> float:
-    """Σ over the named joints of the steady friction torque at these joint speeds (rad/s or m/s), the sign
-    replaced by tanh(v/width): N·m or N on each joint, not reflected."""
-    out = 0.0
-    for name, v in zip(joints, speeds, strict=True):
-        p = spec.joints[spec.joint_index(name)].friction
-        if p is None:
-            continue
-        s = math.tanh(v / width)
-        out += s * float(p.g(v)) - p.bias * abs(s)
-    return out
+def smooth_friction(spec: PlantSpec, joint: str, speeds: np.ndarray, width: float) -> np.ndarray:
+    """The steady friction torque of the named joint at these speeds (rad/s or m/s), the sign replaced by
+    tanh(v/width): N·m or N on the joint, not reflected (zero on a joint without friction)."""
+    p = spec.joints[spec.joint_index(joint)].friction
+    if p is None:
+        return np.zeros_like(speeds)
+    s = elementwise(math.tanh, speeds / width)
+    return 0.0 + (s * p.g(speeds) - p.bias * np.abs(s))
 
 
 class ModelFeedForward:
     """The nominal plant's inverse on the reference (module docstring), in command units: rigid on a
     position reading, two-mass on a speed reading of a spring-coupled drive, rigid on any other speed
-    reading."""
+    reading. Each row an episode's (ctx.episodes)."""
 
     def __init__(self, ctx: EpisodeContext, entry: FeedForwardEntry):
         spec, sc = ctx.plant, ctx.scenario
@@ -148,7 +151,7 @@ class ModelFeedForward:
         self.b = spec.actuator_gain
         self.two_mass = self.speed and bool(spec.springs)
         if self.two_mass:
-            self._two_mass_start(spec)
+            self._two_mass_start(spec, ctx.episodes)
         elif self.speed:
             self.J = sum(j.inertia for j in spec.joints)
             self.c = sum(j.viscous + (j.friction.sigma2 if j.friction else 0.0) for j in spec.joints)
@@ -156,10 +159,10 @@ class ModelFeedForward:
         else:
             self.J, self.c, _ = rigid_position_plant(spec)
             self.ratios = speed_ratios(spec)
-        self.rate = 0.0  # the reference's drive speed at the last call (units/s)
-        self.friction = 0.0  # the friction part of the last u_ff (command units)
+        self.rate = np.zeros(ctx.episodes)  # the references' drive speeds at the last call (units/s)
+        self.friction = np.zeros(ctx.episodes)  # the friction part of the last u_ff (command units)
 
-    def _two_mass_start(self, spec: PlantSpec) -> None:
+    def _two_mass_start(self, spec: PlantSpec, episodes: int) -> None:
         """The load's model under the reference speed: x = (ω2, θ2 - θ1), driven by ω1 and the load
         friction, exact ZOH over the control period (Wallenborg 1987 eq. 3.1)."""
         A, _, _ = state_space(spec)
@@ -171,11 +174,11 @@ class ModelFeedForward:
         Bl = np.array([[A[1, 0], -1.0 / J2], [A[2, 0], 0.0]])  # inputs (ω1, F2)
         Ad, Bd, *_ = cont2discrete((Al, Bl, np.eye(2), np.zeros((2, 2))), self.h)
         self.Ad, self.Bd = Ad, Bd
-        self.x = np.zeros(2)
+        self.x = np.zeros((episodes, 2))
         self.load = spec.joints[1].name
 
-    def command(self, r: float, preview: np.ndarray) -> float:
-        """u_ff (command units) for the reference now and its preview."""
+    def command(self, r: np.ndarray, preview: np.ndarray) -> np.ndarray:
+        """u_ff (command units) for the references now (n,) and their previews (n, P)."""
         e = self.entry
         value, rate, accel = self.window.derivatives(r, preview, e.lead_steps)
         if self.speed:  # the reading is a speed: its value is the speed, its rate the acceleration
@@ -185,16 +188,17 @@ class ModelFeedForward:
         self.rate = v
         width = e.smoothing_speed_per_s
         if self.two_mass:
-            w2, phi = self.x
-            f1 = smooth_friction(self.spec, [self.spec.joints[0].name], [v], width)
-            f2 = smooth_friction(self.spec, [self.load], [w2], width)
+            w2, phi = self.x[:, 0], self.x[:, 1]
+            f1 = smooth_friction(self.spec, self.spec.joints[0].name, v, width)
+            f2 = smooth_friction(self.spec, self.load, w2, width)
             tau = e.inertia_scale * (self.J1 * a + (self.d1 + self.d) * v - self.d * w2 - self.k * phi)
-            self.x = self.Ad @ self.x + self.Bd @ np.array([v, e.friction_scale * f2])
+            drive = np.stack([v, e.friction_scale * f2], axis=1)
+            self.x = np.matvec(self.Ad, self.x) + np.matvec(self.Bd, drive)
             self.friction = e.friction_scale * f1 / self.b
             return tau / self.b + self.friction
-        fr = sum(  # each joint's friction reflected to the drive through its speed ratio
-            rj * smooth_friction(self.spec, [n], [rj * v], width) for n, rj in self.ratios.items()
-        )
+        fr = np.zeros_like(v)  # each joint's friction reflected to the drive through its speed ratio
+        for n, rj in self.ratios.items():
+            fr = fr + rj * smooth_friction(self.spec, n, rj * v, width)
         self.friction = e.friction_scale * fr / self.b
         return e.inertia_scale * (self.J * a + self.c * v) / self.b + self.friction
 
@@ -226,11 +230,11 @@ class PIDModelFF(PID):
         self.gains = scaled(self.gains, entry.feedback_gain_scale)
         self.ff = ModelFeedForward(ctx, entry)
 
-    def feedforward(self, r: float) -> float:
+    def feedforward(self, r: np.ndarray) -> np.ndarray:
         """u_ff now (command units); a subclass adds its own correction."""
         return self.ff.command(r, self.preview)
 
-    def command(self, y: float, r: float) -> float:
+    def commands(self, y: np.ndarray, r: np.ndarray) -> np.ndarray:
         return self.feedback(y, r, self.feedforward(r))
 
     def params(self) -> dict[str, Any]:
@@ -277,7 +281,7 @@ class CascadeSettings(cfg.PerPlantSettings):
         return cfg.read(cls.SECTION, lambda s: cls(cls.read_section(s)))
 
 
-class CascadeModelFF(PhysicalController):
+class CascadeModelFF(ArrayController):
     """P position loop over a PI velocity loop with the model feed-forward (module docstring):
     v* = ṙ + K_p·(r - y), u = K_v·(v* - v̂) + K_i·∫(v* - v̂) + u_ff, saturated, the integrator held while the
     total is saturated and the error would push it further. K_v = (2ζω_v J - c)/b, K_i = J·ω_v²/b,
@@ -305,20 +309,20 @@ class CascadeModelFF(PhysicalController):
         self.ki, self.kp = J * w * w / b, e.position_ratio * w
         self.alpha = 1.0 - math.exp(-self.h / e.velocity_filter_s) if e.velocity_filter_s > 0 else 1.0
         self.ff = ModelFeedForward(ctx, self.ff_settings.of(ctx.plant.name))
-        self.y_prev: float | None = None
-        self.v_hat, self.i_term = 0.0, 0.0
+        self.y_prev: np.ndarray | None = None
+        self.v_hat, self.i_term = np.zeros(self.episodes), np.zeros(self.episodes)
 
-    def command(self, y: float, r: float) -> float:
+    def commands(self, y: np.ndarray, r: np.ndarray) -> np.ndarray:
         u_ff = self.ff.command(r, self.preview)
-        v = 0.0 if self.y_prev is None else (y - self.y_prev) / self.h
+        v = np.zeros_like(y) if self.y_prev is None else (y - self.y_prev) / self.h
         self.y_prev = y
-        self.v_hat += self.alpha * (v - self.v_hat)
+        self.v_hat = self.v_hat + self.alpha * (v - self.v_hat)
         ev = self.ff.rate * self.ff.gain + self.kp * (r - y) - self.v_hat
         u = self.kv * ev + self.i_term + u_ff
         limit = self.sc.action_scale
-        if abs(u) < limit or u * ev < 0:
-            self.i_term += self.ki * ev * self.h
-        return max(-limit, min(limit, u))
+        grow = (np.abs(u) < limit) | (u * ev < 0)
+        self.i_term = np.where(grow, self.i_term + self.ki * ev * self.h, self.i_term)
+        return np.clip(u, -limit, limit)
 
     def params(self) -> dict[str, Any]:
         return {"kp": self.kp, "kv": self.kv, "ki": self.ki} if hasattr(self, "kp") else {}

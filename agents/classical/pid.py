@@ -10,12 +10,14 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any, ClassVar
 
+import numpy as np
+
 from frictiongym.envs.config import Node
 from frictiongym.envs.plants import PlantSpec
 from frictiongym.envs.scenario import Scenario
 
 from .. import settings as cfg
-from ..base import EpisodeContext, PhysicalController
+from ..base import ArrayController, EpisodeContext
 from .design import (
     PIDGains,
     pd_by_pole_placement,
@@ -118,7 +120,7 @@ def has_lab_controller(spec: PlantSpec) -> bool:
     return hasattr(spec.document, "lab_kp_per_s")
 
 
-class PID(PhysicalController):
+class PID(ArrayController):
     """u = kp·e + ki·∫e + kd·d(-y)/dt, e = r - y: derivative on the measurement (no set-point kick),
     backward differences at T_s (or, on a plant whose loop is its lab controller, the lab's velocity
     FIR: EMPS §2.2's 2-tap average, i.e. (y(k) - y(k-2))/(2 T_s)); conditional-integration anti-windup
@@ -135,26 +137,28 @@ class PID(PhysicalController):
         self.gains = design_pid(ctx, self.integral, self.settings)
         lab = self.settings.loop(ctx.plant).lab_controller
         self.fir = ctx.plant.document.lab_fir if lab else None
-        self.i_term, self.y_prev, self.qf_prev = 0.0, None, None
-        self.share = 1.0
+        self.i_term = np.zeros(self.episodes)
+        self.y_prev: np.ndarray | None = None  # the last readings, none before the first
+        self.qf_prev: np.ndarray | None = None
+        self.share: float | np.ndarray = 1.0
 
-    def authority(self, share: float) -> None:
+    def authority(self, share: float | np.ndarray) -> None:
         self.share = share
 
-    def loop_velocity(self, y: float) -> float:
-        """The loop's velocity estimate (units/s) from this reading and the previous ones."""
+    def loop_velocity(self, y: np.ndarray) -> np.ndarray:
+        """The loop's velocity estimate (units/s) from these readings and the previous ones."""
         if self.fir is not None:  # qf(k) = a·y(k) + b·y(k-1); v = (qf(k) - qf(k-1))/h
             prev = y if self.y_prev is None else self.y_prev
             qf = self.fir[0] * y + self.fir[1] * prev
-            v = 0.0 if self.qf_prev is None else (qf - self.qf_prev) / self.h
+            v = np.zeros_like(y) if self.qf_prev is None else (qf - self.qf_prev) / self.h
             self.qf_prev = qf
             return v
-        return 0.0 if self.y_prev is None else (y - self.y_prev) / self.h
+        return np.zeros_like(y) if self.y_prev is None else (y - self.y_prev) / self.h
 
-    def command(self, y: float, r: float) -> float:
+    def commands(self, y: np.ndarray, r: np.ndarray) -> np.ndarray:
         return self.feedback(y, r, 0.0)
 
-    def feedback(self, y: float, r: float, offset: float) -> float:
+    def feedback(self, y: np.ndarray, r: np.ndarray, offset: float | np.ndarray) -> np.ndarray:
         """The loop's command plus `offset` (a feed-forward, command units), saturated; the integrator's
         anti-windup judges the applied total (0.0 added to a float leaves it unchanged: PID alone)."""
         g, h, limit = self.gains, self.h, self.sc.action_scale
@@ -162,9 +166,9 @@ class PID(PhysicalController):
         d = -self.loop_velocity(y)
         self.y_prev = y
         u = g.kp * e + self.i_term + g.kd * d + offset
-        if abs(u) < limit or u * e < 0:
-            self.i_term += self.share * g.ki * e * h  # 1.0·x is x: alone, bit for bit
-        return max(-limit, min(limit, u))
+        grow = (np.abs(u) < limit) | (u * e < 0)
+        self.i_term = np.where(grow, self.i_term + self.share * g.ki * e * h, self.i_term)
+        return np.clip(u, -limit, limit)
 
     def params(self) -> dict[str, Any]:
         return vars(self.gains) if hasattr(self, "gains") else {}

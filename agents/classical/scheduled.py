@@ -69,7 +69,7 @@ from frictiongym.envs.config import ConfigError, Node
 from frictiongym.envs.scenario import TASKS, TRACKING, Scenario
 
 from .. import settings as cfg
-from ..base import Controller, EpisodeContext, PhysicalController
+from ..base import ArrayController, Controller, EpisodeContext
 from .lugre_observer import LuGreObserver
 
 GATES = ("none", "motion", "rest", "floor")  # the share of a residual's authority (module docstring)
@@ -135,7 +135,7 @@ class SpeedScheduledSettings(cfg.FamilySettings):
         return cfg.read(cls.SECTION, build)
 
 
-class SpeedScheduled(PhysicalController):
+class SpeedScheduled(ArrayController):
     """u = (1 - w)·u_low + w·u_high, w = clip((s - speed_low)/(speed_high - speed_low), 0, 1) with s the
     reference's speed envelope (module docstring). Both loops run every sample on the same reading, so
     each keeps its own state (integrator, observer) as if it were acting alone on this trajectory; at
@@ -169,14 +169,14 @@ class SpeedScheduled(PhysicalController):
             low = (s.low, f"{entry}.low")
         return {"low": low, "high": (s.high, f"{entry}.high")}
 
-    def pair(self, scenario: Scenario) -> tuple[PhysicalController, PhysicalController]:
+    def pair(self, scenario: Scenario) -> tuple[ArrayController, ArrayController]:
         """The low and high loops of the scenario's plant, new (the high loop's velocity filtered where
         the schedule says so)."""
         out = []
         for name, entry in self.loop_names(scenario).values():
             c = self.loops(name)
-            if not isinstance(c, PhysicalController):
-                raise ConfigError(entry, f"{name} is not a loop on physical units")
+            if not (isinstance(c, ArrayController) and c.steps_arrays):
+                raise ConfigError(entry, f"{name} is not a loop on physical units that steps as arrays")
             out.append(c)
         low, high = out
         plant = scenario.spec.name
@@ -207,33 +207,38 @@ class SpeedScheduled(PhysicalController):
         self.low.reset(ctx)
         self.high.reset(ctx)
         self.decay = math.exp(-self.h / self.s.hold_s)
-        self.speed, self.r_prev, self.w, self.at_rest = 0.0, None, 0.0, False
+        n = self.episodes
+        self.speed, self.r_prev, self.w = np.zeros(n), None, np.zeros(n)
+        self.at_rest = np.zeros(n, dtype=bool)
 
-    def weight(self, r: float) -> float:
-        """The high loop's weight after this sample's reference (updates the speed envelope and whether
-        the reference is at rest)."""
-        self.at_rest = self.r_prev is not None and r == self.r_prev
-        v = 0.0 if self.r_prev is None else abs(r - self.r_prev) / self.h
+    def weight(self, r: np.ndarray) -> np.ndarray:
+        """The high loop's weights after this sample's references (updates the speed envelopes and
+        whether each reference is at rest)."""
+        if self.r_prev is None:
+            self.at_rest, v = np.zeros(len(r), dtype=bool), np.zeros_like(r)
+        else:
+            self.at_rest, v = r == self.r_prev, np.abs(r - self.r_prev) / self.h
         self.r_prev = r
-        self.speed = max(v, self.speed * self.decay)
-        return min(1.0, max(0.0, (self.speed - self.s.speed_low) / (self.s.speed_high - self.s.speed_low)))
+        self.speed = np.maximum(v, self.speed * self.decay)
+        return np.minimum(
+            1.0, np.maximum(0.0, (self.speed - self.s.speed_low) / (self.s.speed_high - self.s.speed_low))
+        )
 
-    def command(self, y: float, r: float) -> float:
+    def commands(self, y: np.ndarray, r: np.ndarray) -> np.ndarray:
         self.w = w = self.weight(r)
         if self.s.bumpless:
             self.low.authority(1.0 - w)
             self.high.authority(w)
-        return (1.0 - w) * self.low.command(y, r) + w * self.high.command(y, r)
+        return (1.0 - w) * self.low.commands(y, r) + w * self.high.commands(y, r)
 
-    def residual_share(self) -> float:
+    def residual_share(self) -> float | np.ndarray:
         gate = self.s.residual_gate
         if gate == "none":
             return 1.0
         if gate == "motion":
             return self.w
-        if self.at_rest:
-            return 1.0
-        return self.w if gate == "rest" else max(self.w, self.s.residual_floor)
+        at_gate = self.w if gate == "rest" else np.maximum(self.w, self.s.residual_floor)
+        return np.where(self.at_rest, 1.0, at_gate)
 
     def params(self) -> dict[str, Any]:
         s = getattr(self, "s", None)

@@ -7,11 +7,13 @@ from dataclasses import dataclass
 from functools import cache
 from typing import Any, ClassVar
 
+import numpy as np
+
 from frictiongym.envs import units
 from frictiongym.envs.scenario import REGULATION, Scenario
 
 from .. import settings as cfg
-from ..base import EpisodeContext, PhysicalController, drive_friction_reason
+from ..base import ArrayController, EpisodeContext, drive_friction_reason
 from .pid import PIDSettings, design_pid
 
 EQ12B_READINGS = ("printed", "symmetric")
@@ -61,7 +63,7 @@ def static_bounds(ctx: EpisodeContext) -> tuple[float, float]:
     return k * lv["static_pos"], k * lv["static_neg"]
 
 
-class Southward(PhysicalController):
+class Southward(ArrayController):
     """Southward et al. (Kang eq. 7-8): T_c = -K_d ω - T_n, with T_n the bang-bang compensation
     -T̃_s^∓ inside [θ̃_L, θ̃_H] and K_p θ outside (θ = position error y - r), T̃_s = margin·T_s.
     ω from the backward difference of the encoder (digital D)."""
@@ -87,28 +89,23 @@ class Southward(PhysicalController):
         ts_pos, ts_neg = static_bounds(ctx)
         self.ts_pos, self.ts_neg = margin * ts_pos, -margin * ts_neg  # T̃_s^+ > 0, T̃_s^- < 0
         self.theta_h, self.theta_l = -self.ts_neg / self.kp, -self.ts_pos / self.kp  # eq. (8b)-(8c)
-        self.y_prev = None
+        self.y_prev: np.ndarray | None = None
 
-    def omega(self, y: float) -> float:
-        w = 0.0 if self.y_prev is None else (y - self.y_prev) / self.h
+    def omega(self, y: np.ndarray) -> np.ndarray:
+        w = np.zeros_like(y) if self.y_prev is None else (y - self.y_prev) / self.h
         self.y_prev = y
         return w
 
-    def compensation(self, theta: float, w: float) -> float:
+    def compensation(self, theta: np.ndarray, w: np.ndarray) -> np.ndarray:
         """T_n of eq. (8a)."""
-        if 0 < theta <= self.theta_h:
-            return -self.ts_neg
-        if theta == 0:
-            return 0.0
-        if self.theta_l <= theta < 0:
-            return -self.ts_pos
-        return self.kp * theta
+        bands = [(theta > 0) & (theta <= self.theta_h), theta == 0, (self.theta_l <= theta) & (theta < 0)]
+        return np.select(bands, [-self.ts_neg, 0.0, -self.ts_pos], self.kp * theta)
 
-    def command(self, y: float, r: float) -> float:
+    def commands(self, y: np.ndarray, r: np.ndarray) -> np.ndarray:
         w = self.omega(y)
         torque = -self.kd * w - self.compensation(y - r, w)
         limit = self.sc.action_scale
-        return max(-limit, min(limit, torque / self.ctx.plant.actuator_gain))
+        return np.clip(torque / self.ctx.plant.actuator_gain, -limit, limit)
 
     def params(self) -> dict[str, Any]:
         return {
@@ -158,38 +155,42 @@ class RDFC(Southward):
         super().start(ctx)
         self.delta = units.deg_to_rad(self.delta_deg)
 
-    def compensation(self, theta: float, w: float) -> float:
+    def compensation(self, theta: np.ndarray, w: np.ndarray) -> np.ndarray:
         """T_n of eq. (12), K_p θ outside the listed bands. `reading` selects eq. (12b)'s third line:
         "printed" (θ̃_L ≤ θ ≤ δ_L) or "symmetric" (θ̃_L ≤ θ < 0, ERRATA 001's suggested typo fix)."""
-        d_h, d_l = self.delta, -self.delta
-        if w > 0:  # (12a)
-            if 0 < theta <= self.theta_h:
-                return -self.ts_neg
-            if self.theta_l <= theta <= d_l:
-                return -self.ts_pos
-            if d_l <= theta <= 0:
-                return 0.0
-        elif w < 0:  # (12b)
-            if d_h < theta <= self.theta_h:
-                return -self.ts_neg
-            if 0 <= theta <= d_h:
-                return 0.0
-            if self.theta_l <= theta and (theta <= d_l if self.reading == "printed" else theta < 0):
-                return -self.ts_pos
-        else:  # (12c)
-            if d_h < theta <= self.theta_h:
-                return -self.ts_neg
-            if d_l <= theta <= d_h:
-                return 0.0
-            if self.theta_l <= theta < d_l:
-                return -self.ts_pos
-        return self.kp * theta
+        d_h, d_l, t = self.delta, -self.delta, theta
+        rising, falling = w > 0, w < 0
+        still = ~rising & ~falling
+        below = t <= d_l if self.reading == "printed" else t < 0
+        bands = [  # the first that holds applies
+            rising & (t > 0) & (t <= self.theta_h),  # (12a)
+            rising & (self.theta_l <= t) & (t <= d_l),
+            rising & (d_l <= t) & (t <= 0),
+            falling & (d_h < t) & (t <= self.theta_h),  # (12b)
+            falling & (t >= 0) & (t <= d_h),
+            falling & (self.theta_l <= t) & below,
+            still & (d_h < t) & (t <= self.theta_h),  # (12c)
+            still & (d_l <= t) & (t <= d_h),
+            still & (self.theta_l <= t) & (t < d_l),
+        ]
+        levels = [
+            -self.ts_neg,
+            -self.ts_pos,
+            0.0,
+            -self.ts_neg,
+            0.0,
+            -self.ts_pos,
+            -self.ts_neg,
+            0.0,
+            -self.ts_pos,
+        ]
+        return np.select(bands, levels, self.kp * t)
 
-    def command(self, y: float, r: float) -> float:
+    def commands(self, y: np.ndarray, r: np.ndarray) -> np.ndarray:
         w = self.omega(y)  # its sign selects the hysteresis branch; D itself is analog
         torque = -self.compensation(y - r, w)
         limit = self.sc.action_scale
-        return max(-limit, min(limit, torque / self.ctx.plant.actuator_gain))
+        return np.clip(torque / self.ctx.plant.actuator_gain, -limit, limit)
 
     def params(self) -> dict[str, Any]:
         return {**super().params(), "delta_deg": self.delta_deg, "eq12b_reading": self.reading}

@@ -17,7 +17,6 @@ from scipy.optimize import brentq
 from frictiongym.envs.plants import PlantSpec
 from frictiongym.envs.plants.flexible_servo import state_space, tacho_gains
 from frictiongym.envs.scenario import Scenario
-from frictiongym.envs.servo_env import decode_observation
 
 from .. import settings as cfg
 from ..base import Controller, EpisodeContext
@@ -198,6 +197,7 @@ class StateFeedback(Controller):
 
     name: ClassVar[str] = "SF"
     sensor_kinds: ClassVar[tuple[str, ...]] = ("tacho",)
+    steps_arrays: ClassVar[bool] = True
 
     def __init__(
         self,
@@ -252,39 +252,53 @@ class StateFeedback(Controller):
         scale = ctx.knowledge.get("static_friction_scale", 1.0)
         self.F_pos, self.F_neg = scale * F["static_pos"], scale * F["static_neg"]
         self.gain = spec.actuator_gain  # k_m·k_i, N·m/V
-        self.x = np.zeros(3)  # x̂(k|k-1) (digital) or x̂(t_k) (continuous)
-        self.pending: tuple[np.ndarray, float, float, float] | None = None  # last sample's update inputs
+        self.x = np.zeros((ctx.episodes, 3))  # x̂(k|k-1) (digital) or x̂(t_k) (continuous), per episode
+        # the last sample's update inputs: x̂, u0, the reading, the command the env holds if none is added
+        self.pending: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self.tacho = "tacho1" if self.sensor == "y1" else "tacho2"
+        lay = sc.layout
+        self.columns = (
+            lay.slice("sensors").start + spec.sensor_names.index(self.tacho),
+            lay.slice("reference").start,
+            lay.slice("previous_action").start,
+        )
 
-    def friction_command(self, y_est: float) -> float:
-        """u_f (V) from the estimated output (V), eq. (6.13)/(6.14) as coded in CSFNL/DSFNL."""
-        eps = self.settings.eps_v
-        F = self.F_pos if y_est > 0 else self.F_neg
+    def friction_command(self, y_est: np.ndarray) -> np.ndarray:
+        """u_f (V) from the estimated outputs (V), eq. (6.13)/(6.14) as coded in CSFNL/DSFNL."""
         if self.compensation == "none":
-            return 0.0
-        if abs(y_est) < eps:
-            return F * y_est / eps / self.gain if self.compensation == "highgain" else 0.0
-        return float(np.sign(y_est)) * F / self.gain
+            return np.zeros_like(y_est)
+        eps = self.settings.eps_v
+        F = np.where(y_est > 0, self.F_pos, self.F_neg)
+        inside = F * y_est / eps / self.gain if self.compensation == "highgain" else 0.0
+        return np.where(np.abs(y_est) < eps, inside, np.sign(y_est) * F / self.gain)
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        o = decode_observation(self.sc, obs, trusted=True)  # the env's own observation
-        y, yr = o["sensors"][self.tacho], o["reference"]
-        d = self.design
+        return self.act_episodes(obs[None])[0]
+
+    def act_episodes(self, obs: np.ndarray) -> np.ndarray:
+        sc, d = self.sc, self.design
+        tacho, reference, held_now = self.columns  # decoded as decode_observation decodes them
+        y = obs[:, tacho] * sc.output_scale  # float32, as the reading is
+        yr = (obs[:, reference] * sc.output_scale).astype(np.float64)
         if self.pending is not None:  # the last period's observer update, with what was held over it
             xe, u0, y_last, held = self.pending
-            if self.observe_residual:
-                u0 += o["previous_command"] - held  # the residual's part of the held command (V)
+            if self.observe_residual:  # the residual's part of the held command (V)
+                u0 = u0 + ((obs[:, held_now] * sc.action_scale).astype(np.float64) - held)
             if self.continuous:
-                self.x = self.Ad @ xe + self.Bd @ np.array([u0, y_last])
+                self.x = np.matvec(self.Ad, xe) + np.matvec(self.Bd, np.stack([u0, y_last], axis=1))
             else:
-                self.x = d.Phi @ xe + d.Gamma.ravel() * u0
+                self.x = np.matvec(d.Phi, xe) + d.Gamma.ravel() * u0[:, None]
         umax = self.settings.u_max_v
-        xe = self.x if self.continuous else self.x + d.K.ravel() * (y - (d.C @ self.x).item())
-        u0 = float(np.clip(d.lr * yr - (d.L @ xe).item(), -umax, umax))
-        u = u0 + self.friction_command((d.C @ xe).item())
-        action = np.array([u / self.sc.action_scale], dtype=np.float32)
+        if self.continuous:
+            xe = self.x
+        else:  # the innovation in the reading's float32, as the reading meets the estimate
+            innovation = y - np.matvec(d.C, self.x)[:, 0].astype(np.float32)
+            xe = self.x + d.K.ravel() * innovation[:, None]
+        u0 = np.clip(d.lr * yr - np.matvec(d.L, xe)[:, 0], -umax, umax)
+        u = u0 + self.friction_command(np.matvec(d.C, xe)[:, 0])
+        action = (u / sc.action_scale).astype(np.float32)[:, None]
         # what the env will hold if nothing is added (its clip, read back as decode_observation reads it)
-        held = float(np.clip(action, -1.0, 1.0)[0] * self.sc.action_scale)
+        held = (np.clip(action[:, 0], -1.0, 1.0) * sc.action_scale).astype(np.float64)
         self.pending = (xe, u0, y, held)
         return action
 

@@ -59,6 +59,9 @@ class LimitReference(Controller):
     def act(self, obs: np.ndarray) -> np.ndarray:
         return self.loop.act(obs)
 
+    def acting(self) -> Controller:
+        return self.loop.acting()
+
     def params(self) -> dict:
         return {"uncompensated": self.loop.name if self.loop is not None else None}
 
@@ -121,6 +124,9 @@ class Oracle(LimitReference):
     def observe_truth(self, truth: dict[str, np.ndarray], params: EpisodeParams) -> None:
         torque = float(np.dot(self.ratio, truth["nonlinear_friction_torque"]))  # at the drive joint, N·m
         self.compensation = -torque / params.actuator_gain
+
+    def acting(self) -> Controller:
+        return self  # the loop's action plus the compensation
 
     def act(self, obs: np.ndarray) -> np.ndarray:
         a = self.loop.act(obs)

@@ -563,7 +563,7 @@ class LearnedPolicy(LearnedNeeds, Controller):
         """n episodes with one network call per step for all of them: one copy of the base per episode
         (PolicyLockstep); a recurrent policy keeps one state per episode, so each gets a replica."""
         if self.recurrent:
-            return Lockstep([self, *(self.replica() for _ in range(n - 1))])
+            return Lockstep(self, n, other=self.replica)
         return PolicyLockstep(self, n)
 
     def replica(self) -> LearnedPolicy:
@@ -587,7 +587,7 @@ class PolicyLockstep(Lockstep):
     LearnedPolicy.actions for every row (row for row the actions each episode gets alone)."""
 
     def __init__(self, policy: LearnedPolicy, n: int):
-        super().__init__([policy])
+        super().__init__(policy, n)
         self.policy = policy
         self.bases = policy.base.lockstep(n) if policy.base is not None else None
 
@@ -601,5 +601,5 @@ class PolicyLockstep(Lockstep):
             return self.policy.actions(obs, None)
         acts = self.bases.act(obs, rows)  # an array where the bases' rows are decoded at once (Lockstep)
         base = acts if isinstance(acts, np.ndarray) else np.array([np.asarray(u).reshape(1) for u in acts])
-        share = np.array([[self.bases.controllers[r].residual_share()] for r in rows])
+        share = self.bases.shares(rows)
         return self.policy.actions(obs, base, share)

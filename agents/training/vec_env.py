@@ -152,7 +152,7 @@ class TrainingVecEnv(_vec_env_base()):
         if self.bases is None:  # the env's action is a float32, as a single env receives it
             u = a.astype(np.float32).reshape(n)
         else:
-            shares = np.array([[b.residual_share()] for b in self.bases])
+            shares = np.array([np.broadcast_to(b.residual_share(), (1,)) for b in self.bases])
             u = residual_action(np.concatenate(self.u_base).reshape(n, 1), a, self.alpha, shares).reshape(n)
         obs, reward, term, trunc, _ = self.core.step(u)
         if self.smoothness:
