@@ -55,6 +55,7 @@ def assert_same(a: EpisodeResult, b: EpisodeResult) -> None:
         ("Cascade+MFF", "emps_tracking", 4.0),  # the feed-forward's reference window, a filtered cascade
         ("ILC", "m220_reversal_tracking_slow", 25.0),  # learns at the end of each 20 s period
         ("MFF+DOB", "flexible_speed_reversal", 4.0),  # the two-mass feed-forward and the observer
+        ("AdaptiveFF", "kang_drift", 6.0),  # adapts in motion only, re-anchored at each
         ("ResSAC-m220_reversal_tracking-s0", "m220_reversal_tracking", 4.0),  # residual, normaliser
         ("ResSAC-kang_regulation-s1", "kang_regulation_coarse", None),
     ],

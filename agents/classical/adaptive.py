@@ -132,5 +132,4 @@ class AdaptiveCoulomb(PIDModelFF):
         return u
 
     def params(self) -> dict[str, Any]:
-        level = getattr(self, "level", None)  # the first episode's adapted level at the end of its run
-        return {**super().params(), "coulomb_level": None if level is None else float(level[0])}
+        return {**super().params(), "nominal_coulomb_level": getattr(self, "level0", None)}
