@@ -74,9 +74,10 @@ class Controller(ABC):
         default none. Only the physical-limit references use it: an entry must run the scenario as is."""
         return {}
 
-    def observe_truth(self, truth: dict[str, np.ndarray], params: EpisodeParams) -> None:
+    def observe_truth(self, truth: dict[str, np.ndarray], params: EpisodeParams, row: int = 0) -> None:
         """The episode's ground truth at this control instant (ServoEnv.ground_truth) and its drawn
-        parameters, for controllers with reads_truth (the Oracle reference, never an entry)."""
+        parameters, for controllers with reads_truth (the Oracle reference, never an entry); `row`: which
+        of the episodes a controller that steps arrays acts on."""
         return None
 
     @abstractmethod
@@ -154,7 +155,10 @@ class Lockstep:
 
     def observe_truth(self, row: int, truth: dict[str, np.ndarray], params: EpisodeParams) -> None:
         """Episode `row`'s ground truth now (controllers with reads_truth)."""
-        self.controllers[row].observe_truth(truth, params)
+        if self.array is not None:
+            self.array.observe_truth(truth, params, row)
+        else:
+            self.controllers[row].observe_truth(truth, params)
 
     def act(self, obs: np.ndarray, rows: np.ndarray) -> list[Any] | np.ndarray:
         """The actions of episodes `rows` for their observations (one row each), as each controller

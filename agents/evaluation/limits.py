@@ -106,28 +106,35 @@ class TrackingLimit(LimitReference):
 
 
 class Oracle(LimitReference):
-    """The uncompensated loop plus the episode's true nonlinear friction torque (module docstring)."""
+    """The uncompensated loop plus the episode's true nonlinear friction torque (module docstring), on every
+    episode of a lockstep at once (its loop steps arrays)."""
 
     name: ClassVar[str] = "Oracle"
     reads_truth: ClassVar[bool] = True
+    steps_arrays: ClassVar[bool] = True
 
     def reset(self, ctx: EpisodeContext) -> None:
         super().reset(ctx)
+        if not self.loop.acting().steps_arrays:
+            raise TypeError(f"Oracle: the uncompensated loop {self.loop.name} does not step arrays")
         sc = ctx.scenario
         spec = sc.spec
         ratios = spec.kinematic_ratios()  # belt-coupled joints; a shaft-coupled load turns with its motor
         drive = ratios.get(spec.actuator_joint, 1.0)
         self.ratio = np.array([ratios.get(j, drive) / drive for j in friction_joints(spec)])
         self.action_scale = sc.action_scale
-        self.compensation = 0.0  # command units (V or N·m)
+        self.compensation = np.zeros(ctx.episodes)  # command units (V or N·m), per episode
 
-    def observe_truth(self, truth: dict[str, np.ndarray], params: EpisodeParams) -> None:
+    def observe_truth(self, truth: dict[str, np.ndarray], params: EpisodeParams, row: int = 0) -> None:
         torque = float(np.dot(self.ratio, truth["nonlinear_friction_torque"]))  # at the drive joint, N·m
-        self.compensation = -torque / params.actuator_gain
+        self.compensation[row] = -torque / params.actuator_gain
 
     def acting(self) -> Controller:
         return self  # the loop's action plus the compensation
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        a = self.loop.act(obs)
-        return np.asarray(a, dtype=float) + self.compensation / self.action_scale
+        return self.act_episodes(obs[None])[0]
+
+    def act_episodes(self, obs: np.ndarray) -> np.ndarray:
+        a = self.loop.acting().act_episodes(obs)
+        return np.asarray(a, dtype=float) + (self.compensation / self.action_scale)[:, None]
