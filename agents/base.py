@@ -226,7 +226,7 @@ def physical_actions(
 
 def array_actions(controller: ArrayController, obs: np.ndarray) -> np.ndarray:
     """ArrayController.act for the observation rows of every episode it acts on: the readings, references
-    and previews decoded as physical_actions decodes them, one command() call, the actions (n, 1)
+    and previews decoded as physical_actions decodes them, one commands() call, the actions (n, 1)
     float32: each row's the same as the episode's alone."""
     sc = controller.sc
     sensor, reference, preview = controller.columns

@@ -52,8 +52,8 @@ def assert_same(a: EpisodeResult, b: EpisodeResult) -> None:
         ("RDFC", "kang_regulation", None),  # a switching compensator with its own state
         ("LuGreObserver", "kang_drift", 6.0),  # friction drifting within the episode
         ("SF+relay", "flexible_zero_speed", None),  # an observer and the analog rate loop's hardware
-        ("Cascade+MFF", "emps_tracking", 4.0),  # the feed-forward's reference window, a filtered cascade
-        ("ILC", "m220_reversal_tracking_slow", 25.0),  # learns at the end of each 20 s period
+        ("Cascade+MFF", "emps_tracking", 2.0),  # the feed-forward's reference window, a filtered cascade
+        ("ILC", "m220_reversal_tracking", 6.0),  # learns at the end of its first 5 s period
         ("MFF+DOB", "flexible_speed_reversal", 4.0),  # the two-mass feed-forward and the observer
         ("AdaptiveFF", "kang_drift", 6.0),  # adapts in motion only, re-anchored at each
         ("ResSAC-m220_reversal_tracking-s0", "m220_reversal_tracking", 4.0),  # residual, normaliser
