@@ -103,10 +103,11 @@ class Controller(ABC):
         one, so a wrapper costs nothing per step."""
         return self
 
-    def residual_share(self) -> float:
+    def residual_share(self) -> float | np.ndarray:
         """As a residual's base: the share in [0, 1] of the residual's authority α it grants at its last
-        act (learned.residual_action). 1: the residual acts everywhere; a gated base keeps it off where
-        its own loop should act alone (scheduled.SpeedScheduledFFGated)."""
+        act (learned.residual_action), one per episode for a controller that steps arrays. 1: the
+        residual acts everywhere; a gated base keeps it off where its own loop should act alone
+        (scheduled.SpeedScheduled with a residual gate)."""
         return 1.0
 
     def lockstep(self, n: int) -> Lockstep:
