@@ -95,6 +95,7 @@ def test_scipy_default_padding_would_not_reproduce_them(estimation):
     assert np.abs(q - idim.matlab_filtfilt(b, a, estimation.position))[:20].max() > 1e-9
 
 
+@pytest.mark.slow  # the EMPS's whole model table: every structure and delay fitted (12 s)
 def test_the_offset_and_asymmetric_coulomb_levels_are_not_identifiable_together():
     row = next(r for r in idim.emps_table() if r.fit.structure == "coulomb_viscous_asym_offset")
     assert row.fit.condition_number > idim.CONDITION_LIMIT and not row.fit.identifiable
@@ -110,6 +111,7 @@ def test_every_fit_sees_only_the_estimation_set(estimation, validation):
     assert doubled[0].validation.relative_error_pct == pytest.approx(rows[0].fit.relative_error_pct)
 
 
+@pytest.mark.slow  # the EMPS's whole model table: every structure and delay fitted (12 s)
 def test_a_structure_of_the_suite_beats_both_published_models_on_the_validation_set():
     table = idim.emps_table()
     best = janot2019.best(table)
@@ -119,6 +121,7 @@ def test_a_structure_of_the_suite_beats_both_published_models_on_the_validation_
     assert best.validation.relative_error_pct < min(pub, asym.validation.relative_error_pct)
 
 
+@pytest.mark.slow  # the EMPS's whole model table: every structure and delay fitted (12 s)
 def test_the_profile_interval_of_a_nonlinear_parameter_brackets_its_estimate():
     for r in idim.emps_table():
         if r.fit.nonlinear is not None:
@@ -155,6 +158,7 @@ def test_the_maxwell_slip_state_is_the_simulators_elements_from_rest():
     assert expect[0] / x[0] == pytest.approx(1 / length, rel=0.01)
 
 
+@pytest.mark.slow  # the EMPS's whole model table: every structure and delay fitted (12 s)
 def test_kangs_static_excess_acts_only_inside_the_stick_band_and_the_emps_data_do_not_support_it():
     from frictiongym.envs.friction import KANG_STICK_BAND
     from frictiongym.envs.plants import plant_spec
