@@ -135,17 +135,25 @@ class Lockstep:
         self.physical: list[PhysicalController] | None = None
 
     def reset(self, ctx: EpisodeContext) -> None:
-        """Every episode's start (they share a scenario and a design plant)."""
-        self.first.reset(replace(ctx, episodes=self.n))
-        actor = self.first.acting()
-        if actor.steps_arrays:
-            self.array, self.full = actor, None
-            return
+        """Every episode's start (they share a scenario and a design plant); each controller is reset
+        once. Whether the controller acts through one that steps arrays is known after a reset (a
+        wrapper's loop depends on the scenario), so for several episodes a copy is reset first to tell."""
+        many = replace(ctx, episodes=self.n)
+        if self.n == 1:
+            arrays = None
+        else:
+            trial = copy.deepcopy(self.first)
+            trial.reset(many)
+            arrays = trial.acting().steps_arrays
+        if arrays is not False:
+            self.first.reset(many)
+            actor = self.first.acting()
+            if actor.steps_arrays:
+                self.array, self.full = actor, None
+                return
         self.array = None
-        if self.n > 1:  # a controller of one episode: reset for one
-            self.first.reset(ctx)
         self.controllers = [self.first, *(self.other() for _ in range(self.n - 1))]
-        for c in self.controllers[1:]:
+        for c in self.controllers if arrays is not None else self.controllers[1:]:  # n = 1: reset above
             c.reset(ctx)
         actors = [c.acting() for c in self.controllers]
         if all(acts_by_command(a) for a in actors):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from frictiongym.agents import registry
-from frictiongym.agents.base import EpisodeContext
+from frictiongym.agents.base import EpisodeContext, PhysicalController
 from frictiongym.agents.evaluation.engine import Job, run_chunk
 from frictiongym.agents.evaluation.evaluate import (
     EnvCache,
@@ -91,6 +91,36 @@ def test_an_array_controllers_rows_after_an_episode_ends_are_the_rows_without_it
         rows = np.arange(3) if k < 20 else np.array([0, 2])  # episode 1 ends after 20 periods
         got = three.act(obs[rows], rows)
         np.testing.assert_array_equal(got[rows != 1], two.act(obs[[0, 2]], np.arange(2)))
+
+
+class _Dither(PhysicalController):
+    """A plug-in for one episode whose reset draws from its own generator: PD plus a constant bias drawn
+    at each reset."""
+
+    name = "Dither"
+    sensor_kinds = ("encoder",)
+
+    def __init__(self):
+        self.rng = np.random.default_rng(7)
+
+    def start(self, ctx):
+        self.pd = registry.make("PD")
+        self.pd.reset(ctx)
+        self.bias = 0.1 * self.rng.normal()
+
+    def command(self, y, r):
+        return self.pd.command(y, r) + self.bias
+
+
+def test_a_controller_for_one_episode_is_reset_once_per_episode_in_a_lockstep():
+    """Stepped together, each episode of a per-episode controller gets a copy of the controller as it was
+    given, reset once: its draws at reset are those of the episode run alone (and a built-in loop it
+    uses acts on its one episode)."""
+    episodes = [Episode("kang_regulation", 500000 + i, True) for i in range(3)]
+    alone = [run_episode(_Dither(), e, episode_s=1.0) for e in episodes]
+    together = run_episodes(_Dither(), episodes, episode_s=1.0)
+    for a, b in zip(alone, together, strict=True):
+        np.testing.assert_equal(a.metrics, b.metrics)  # NaN equal to NaN
 
 
 def test_evaluate_orders_results_by_episode_then_controller_and_skips_the_inapplicable():
