@@ -207,23 +207,30 @@ def observation_columns(scenario: Scenario, sensor: str) -> tuple[int, int, slic
     return start, lay.slice("reference").start, lay.slice("preview")
 
 
+def decoded_rows(
+    scenario: Scenario, columns: tuple[int, int, slice], obs: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The tracked readings, references and previews of observation rows (their columns: see
+    observation_columns), decoded in one operation per block with decode_observation's arithmetic
+    (float32 times the output scale), so each row's values are those it decodes alone, bit for bit."""
+    sensor, reference, preview = columns
+    s = scenario.output_scale
+    return obs[:, sensor] * s, obs[:, reference] * s, obs[:, preview] * s
+
+
 def physical_actions(
     controllers: Sequence[PhysicalController],
     columns: tuple[int, int, slice],
     obs: np.ndarray,
     rows: np.ndarray,
 ) -> np.ndarray:
-    """PhysicalController.act for observation rows of one scenario at once: every row's tracked reading,
-    reference and preview (their observation columns, found once at the lockstep's reset) decoded in one
-    operation per block (decode_observation's arithmetic: float32 times the output scale, so each row's
-    values are those it decodes alone, bit for bit), then each episode's own command() in physical units,
-    on the readings as Python floats (float64 arithmetic); the actions as one (rows, 1) float32 array."""
+    """PhysicalController.act for observation rows of one scenario at once: the rows decoded at once
+    (decoded_rows, the columns found once at the lockstep's reset), then each episode's own command() in
+    physical units, on the readings as Python floats (float64 arithmetic); the actions as one (rows, 1)
+    float32 array."""
     sc = controllers[0].sc
-    sensor, reference, preview = columns
-    s = sc.output_scale
-    ys = (obs[:, sensor] * s).tolist()
-    refs = (obs[:, reference] * s).tolist()
-    previews = obs[:, preview] * s
+    ys, refs, previews = decoded_rows(sc, columns, obs)
+    ys, refs = ys.tolist(), refs.tolist()
     out = np.empty((len(rows), 1), dtype=np.float32)
     scale = sc.action_scale
     for j, r in enumerate(rows.tolist()):
@@ -234,16 +241,12 @@ def physical_actions(
 
 
 def array_actions(controller: ArrayController, obs: np.ndarray) -> np.ndarray:
-    """ArrayController.act for the observation rows of every episode it acts on: the readings, references
-    and previews decoded as physical_actions decodes them, one commands() call, the actions (n, 1)
+    """ArrayController.act for the observation rows of every episode it acts on: the rows decoded at
+    once (decoded_rows), one commands() call on float64 readings and references, the actions (n, 1)
     float32: each row's the same as the episode's alone."""
     sc = controller.sc
-    sensor, reference, preview = controller.columns
-    s = sc.output_scale
-    y = (obs[:, sensor] * s).astype(np.float64)
-    r = (obs[:, reference] * s).astype(np.float64)
-    controller.preview = obs[:, preview] * s
-    u = controller.commands(y, r)
+    y, r, controller.preview = decoded_rows(sc, controller.columns, obs)
+    u = controller.commands(y.astype(np.float64), r.astype(np.float64))
     return (u / sc.action_scale).astype(np.float32)[:, None]
 
 

@@ -19,7 +19,7 @@ from frictiongym.envs.plants.flexible_servo import state_space, tacho_gains
 from frictiongym.envs.scenario import Scenario
 
 from .. import settings as cfg
-from ..base import Controller, EpisodeContext
+from ..base import Controller, EpisodeContext, decoded_rows, observation_columns
 
 COMPENSATION = ("none", "relay", "highgain")
 
@@ -256,12 +256,8 @@ class StateFeedback(Controller):
         # the last sample's update inputs: x̂, u0, the reading, the command the env holds if none is added
         self.pending: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self.tacho = "tacho1" if self.sensor == "y1" else "tacho2"
-        lay = sc.layout
-        self.columns = (
-            lay.slice("sensors").start + spec.sensor_names.index(self.tacho),
-            lay.slice("reference").start,
-            lay.slice("previous_action").start,
-        )
+        self.columns = observation_columns(sc, self.tacho)
+        self.held_column = sc.layout.slice("previous_action").start
 
     def friction_command(self, y_est: np.ndarray) -> np.ndarray:
         """u_f (V) from the estimated outputs (V), eq. (6.13)/(6.14) as coded in CSFNL/DSFNL."""
@@ -277,13 +273,12 @@ class StateFeedback(Controller):
 
     def act_episodes(self, obs: np.ndarray) -> np.ndarray:
         sc, d = self.sc, self.design
-        tacho, reference, held_now = self.columns  # decoded as decode_observation decodes them
-        y = obs[:, tacho] * sc.output_scale  # float32, as the reading is
-        yr = (obs[:, reference] * sc.output_scale).astype(np.float64)
+        y, yr, _ = decoded_rows(sc, self.columns, obs)  # y stays float32, as the reading is
+        yr = yr.astype(np.float64)
         if self.pending is not None:  # the last period's observer update, with what was held over it
             xe, u0, y_last, held = self.pending
             if self.observe_residual:  # the residual's part of the held command (V)
-                u0 = u0 + ((obs[:, held_now] * sc.action_scale).astype(np.float64) - held)
+                u0 = u0 + ((obs[:, self.held_column] * sc.action_scale).astype(np.float64) - held)
             if self.continuous:
                 self.x = np.matvec(self.Ad, xe) + np.matvec(self.Bd, np.stack([u0, y_last], axis=1))
             else:

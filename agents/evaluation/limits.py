@@ -115,7 +115,8 @@ class Oracle(LimitReference):
 
     def reset(self, ctx: EpisodeContext) -> None:
         super().reset(ctx)
-        if not self.loop.acting().steps_arrays:
+        self.actor = self.loop.acting()
+        if not self.actor.steps_arrays:
             raise TypeError(f"Oracle: the uncompensated loop {self.loop.name} does not step arrays")
         sc = ctx.scenario
         spec = sc.spec
@@ -136,5 +137,5 @@ class Oracle(LimitReference):
         return self.act_episodes(obs[None])[0]
 
     def act_episodes(self, obs: np.ndarray) -> np.ndarray:
-        a = self.loop.acting().act_episodes(obs)
+        a = self.actor.act_episodes(obs)
         return np.asarray(a, dtype=float) + (self.compensation / self.action_scale)[:, None]
