@@ -296,7 +296,7 @@ def allowed_sources(recorded: tuple[str, ...], allowed: Sequence[str | Path], wh
                     f"{where} names the plug-in {source!r}, whose code would run: pass --controllers "
                     f"{source} to allow it"
                 )
-        elif Path(source).resolve() not in folders:
+        elif not {p.resolve() for p in model_dirs([source])} <= folders:  # a model folder or a group of them
             raise ValueError(f"{where} names the model folder {source!r}: pass --models {source} to allow it")
     return recorded
 

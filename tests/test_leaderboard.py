@@ -161,6 +161,41 @@ def test_verdict_requires_a_paired_win_bounded_effort_and_no_new_limit_cycle():
     assert got["cycle"]["why_not"].startswith("limit cycle") and "exclude 0" in got["unsure"]["why_not"]
 
 
+def test_the_answer_shows_learned_entries_and_plug_ins_in_their_own_columns():
+    """A saved model (named in the board's descriptions) and a user's plug-in are each judged against the
+    baseline in their own column: a plug-in that beats it does not hide a learned entry that does not,
+    and the headline counts each kind on its own."""
+    from frictiongym.agents.evaluation import report
+    from frictiongym.agents.evaluation.board import Board
+
+    sc = load_scenario("kang_regulation")
+
+    def row(name, main, vs=None):
+        m = {k: (1.0, 1.0, 1.0) for k in ("effort_rms", "limit_cycle_amp")}
+        return {"controller": name, "baseline": "DOB", "main": (main,) * 3, "metrics": m, "vs_baseline": vs}
+
+    win = {"diff": -1e-4, "diff_lo": -2e-4, "diff_hi": -5e-5, "p_improve": 0.9}
+    worse = {"diff": 1e-4, "diff_lo": 5e-5, "diff_hi": 2e-4, "p_improve": 0.0}
+    rows = [row("NaiveFF", 1e-4, win), row("DOB", 2e-4), row("ResSAC-s0", 3e-4, worse)]
+    table = {"kang_regulation": [*rows, row("ResSAC-s1", 4e-4, worse)]}
+    scenarios = {"kang_regulation": sc}
+    about = {"ResSAC-s0": "SAC residual", "ResSAC-s1": "SAC residual"}
+    board = Board("test", scenarios, [], table, [], leaderboard.verdicts(table, scenarios), {}, {}, about)
+    (got,) = report.answer_rows(board)["kang_robot"]
+    heads = ["best learned", "learned vs the classical", "best plug-in", "plug-in vs the classical"]
+    assert report.ANSWER_HEAD[2:6] == heads
+    base, learned, learned_vs, plugin, plugin_vs = got["cells"][:5]
+    assert base[0].startswith("DOB: ") and learned[0].startswith("ResSAC-s0: ")
+    assert plugin[0].startswith("NaiveFF: ")
+    assert learned_vs == "no (worse); 0 of 2 beat it" and plugin_vs == "beats it; 1 of 1 beat it"
+    ((_, verdict, lines),) = report.headline(board)
+    assert verdict == (
+        "a learned entry beats the best classical on 0 of 1 scenarios; "
+        "a plug-in entry beats the best classical on 1 of 1 scenarios"
+    )
+    assert len(lines) == 1 and lines[0].startswith("kang_regulation (final_error in rad): NaiveFF ")
+
+
 def test_a_row_equal_to_its_baseline_is_a_tie_and_a_row_above_it_is_worse():
     """The paired interval's verdict names what it shows: entirely above 0 is "worse"; an interval that
     reaches 0 (a row equal to its baseline on every episode gives [0, 0], e.g. a gated residual at a

@@ -1,10 +1,16 @@
 """The controller registry (agents/registry.py): saved models are judged applicable from their manifests
 alone, as the loaded model would judge itself."""
 
+from pathlib import Path
+
+import pytest
+
 from frictiongym.agents import registry
 from frictiongym.agents.learned.manifest import Manifest
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import load_suite
+
+ROOT = Path(__file__).parents[1]
 
 
 def test_a_saved_models_applicability_from_its_manifest_equals_the_loaded_models():
@@ -99,3 +105,15 @@ def test_a_residual_base_is_made_by_name_but_never_a_baseline_or_a_default_entry
     for bad in ("Zero", "Ideal", "PIDD"):
         with pytest.raises(ValueError, match=f"unknown base controller '{bad}'; allowed: .*SpeedScheduled"):
             registry.base_controller(bad)
+
+
+def test_a_finished_run_may_name_a_group_of_model_folders_the_command_line_allows(tmp_path):
+    """run.json records --models as given, e.g. the committed group agents/models/specialist: the report
+    allows it when the command line names the same group (every model folder in it allowed), and refuses
+    it, naming the flag, when the command line allows only one of its folders."""
+    group = str(ROOT / "agents/models/specialist")
+    assert registry.allowed_sources((group,), [group], "run.json") == (group,)
+    one = registry.model_dirs([group])[0]
+    assert registry.allowed_sources((str(one),), [group], "run.json") == (str(one),)
+    with pytest.raises(ValueError, match=f"names the model folder '{group}': pass --models {group}"):
+        registry.allowed_sources((group,), [one], "run.json")

@@ -179,70 +179,81 @@ def markdown(board: Board) -> str:
     return "\n".join(lines) + "\n"
 
 
-ANSWER_HEAD = ["scenario (main metric)", "best classical", "best learned or plug-in", "vs the classical",
-               "entries that beat it", "Ideal", "tracking limit"]  # fmt: skip
+ANSWER_HEAD = ["scenario (main metric)", "best classical", "best learned", "learned vs the classical",
+               "best plug-in", "plug-in vs the classical", "Ideal", "tracking limit"]  # fmt: skip
+KINDS = ("learned", "plug-in")  # the answer's two sides against the classical: saved models, user code
+
+
+def kind(board: Board, name: str) -> str:
+    """An entry's kind: "learned" for a saved model of the run (board.about), else "plug-in" (user code)."""
+    return "learned" if name in board.about else "plug-in"
 
 
 def answer_rows(board: Board) -> dict[str, list[dict]]:
     """The suite's question per plant, a row per scenario: {"scenario": "name (main metric)", "cells":
-    [best classical, best learned or plug-in, verdict, count, Ideal, tracking limit]}, each cell "n/a",
-    a text or (text, the main metric's mean to sort by). The best classical is the baseline (the best
-    classical row that is a result); the best other entry is the best that beats it, else the best."""
+    [best classical, best learned, its verdict, best plug-in, its verdict, Ideal, tracking limit], each
+    cell "n/a", a text or (text, the main metric's mean to sort by); "sides": per kind (KINDS), its best
+    row, how many of its entries beat the baseline and how many ran}. The best classical is the baseline
+    (the best classical row that is a result); the best of a kind is the best that beats it, else the
+    best."""
     judged = {(v["scenario"], v["controller"]): v for v in board.verdicts}
     by_plant: dict[str, list[dict]] = {}
     for sc, rows in board.table.items():
         s = board.scenarios[sc]
         by = {r["controller"]: r for r in rows}
         base = next((r for r in rows if r["controller"] == r["baseline"]), None)
-        other = [r for r in rows if (sc, r["controller"]) in judged]
-        wins = [r for r in other if judged[(sc, r["controller"])]["beats_baseline"]]
-        best = (wins or other or [None])[0]  # rows are sorted by the main metric
 
         def cell(r: dict | None) -> tuple[str, float] | str:
             return "n/a" if r is None else (f"{r['controller']}: {_fmt(r['main'])}", r["main"][0])
 
-        verdict = "n/a"
-        if best is not None:
-            v = judged[(sc, best["controller"])]
-            verdict = "beats it" if v["beats_baseline"] else f"no ({v['why_not']})"
-        count = f"{len(wins)} of {len(other)}" if other else "n/a"
+        cells: list = [cell(base)]
+        sides = {}
+        for k in KINDS:
+            other = [r for r in rows if (sc, r["controller"]) in judged and kind(board, r["controller"]) == k]
+            wins = [r for r in other if judged[(sc, r["controller"])]["beats_baseline"]]
+            best = (wins or other or [None])[0]  # rows are sorted by the main metric
+            verdict = "n/a"
+            if best is not None:
+                v = judged[(sc, best["controller"])]
+                verdict = "beats it" if v["beats_baseline"] else f"no ({v['why_not']})"
+                verdict += f"; {len(wins)} of {len(other)} beat it"
+            cells += [cell(best), verdict]
+            sides[k] = {"best": best, "wins": len(wins), "entries": len(other)}
         limit = by.get("TrackingLimit") or by.get("Ideal")
-        cells = [cell(base), cell(best), verdict, count, cell(by.get("Ideal")), cell(limit)]
+        cells += [cell(by.get("Ideal")), cell(limit)]
         by_plant.setdefault(s.spec.name, []).append(
             {
                 "scenario": f"{sc} ({s.main_metric})",
                 "cells": cells,
                 "name": sc,
                 "baseline": base,
-                "best": best,
-                "wins": len(wins),
-                "entries": len(other),
+                "sides": sides,
             }
         )
     return by_plant
 
 
 def headline(board: Board) -> list[tuple[str, str, list[str]]]:
-    """The answer in a few lines, per plant: (plant, its verdict, a line per scenario a learned or
-    plug-in entry wins there, with both rows' main metric). The console, answer.md and the page open
+    """The answer in a few lines, per plant: (plant, its verdict per kind, a line per scenario a learned
+    or plug-in entry wins there, with both rows' main metric). The console, answer.md and the page open
     with it."""
     out = []
     for plant, rows in answer_rows(board).items():
-        judged = [r for r in rows if r["entries"]]
-        won = [r for r in judged if r["wins"]]
-        if not judged:
-            verdict = "no learned or plug-in entry ran"
-        else:
-            verdict = f"a learned or plug-in entry beats the best classical on {len(won)} of {len(judged)}"
-            verdict += " scenarios"
-        lines = []
-        for r in won:
-            main = board.scenarios[r["name"]].main_metric
-            lines.append(
-                f"{r['name']} ({main} in {board.scenarios[r['name']].metric_unit(main)}): "
-                f"{r['best']['controller']} {_fmt(r['best']['main'])} against "
-                f"{r['baseline']['controller']} {_fmt(r['baseline']['main'])}"
-            )
+        verdicts, lines = [], []
+        for k in KINDS:
+            judged = [r for r in rows if r["sides"][k]["entries"]]
+            won = [r for r in judged if r["sides"][k]["wins"]]
+            if judged:
+                verdicts.append(f"a {k} entry beats the best classical on {len(won)} of {len(judged)}")
+            for r in won:
+                main = board.scenarios[r["name"]].main_metric
+                best = r["sides"][k]["best"]
+                lines.append(
+                    f"{r['name']} ({main} in {board.scenarios[r['name']].metric_unit(main)}): "
+                    f"{best['controller']} {_fmt(best['main'])} against "
+                    f"{r['baseline']['controller']} {_fmt(r['baseline']['main'])}"
+                )
+        verdict = "; ".join(f"{v} scenarios" for v in verdicts) or "no learned or plug-in entry ran"
         out.append((plant, verdict, lines))
     return out
 
@@ -262,9 +273,10 @@ def answer(board: Board) -> str:
         f"# The suite's question on `{board.suite}`",
         "",
         "Per scenario: the best classical controller that is a result (no more than "
-        f"{MAX_EFFORT_RATIO}x the uncompensated loop's effort, no new limit cycle), the best learned or "
-        "plug-in entry (the best that beats the baseline, else the best), whether it beats the baseline "
-        "(paired 95 % interval below 0, effort and limit-cycle rule), how many such entries do, and the "
+        f"{MAX_EFFORT_RATIO}x the uncompensated loop's effort, no new limit cycle); the best learned entry "
+        "(a saved model) and the best plug-in (a user's controller), each the best of its kind that beats "
+        "the baseline, else the best, whether it beats the baseline (paired 95 % interval below 0, effort "
+        "and limit-cycle rule) and how many of its kind do; and the "
         "two limits (Ideal: friction removed under the uncompensated loop; TrackingLimit: the friction-free "
         "twin under the linear two-degree-of-freedom loop, Ideal at a set-point). Mean [95 % interval] of "
         "the main metric, lower is better.",
