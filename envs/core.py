@@ -14,7 +14,7 @@ import mujoco
 import numpy as np
 
 from .friction import element_levels, elements, joint_friction_torque, joint_levels
-from .metrics import episode_metrics, from_first_period
+from .metrics import episode_metrics, from_first_period, reversal_half_window
 from .plants.backend import BatchBackend, SingleBackend, period_delay
 from .plants.mjcf import to_mjcf
 from .plants.params import EpisodeParams, ModelIndex
@@ -509,7 +509,7 @@ class ServoCore:
             settle_band=self.sc.settle_band,
             stick_velocity=self.stick_velocity,
             lc_min_amp=self.lc_min_amp,
-            reversal_half_window=max(0.25, 5 * self.sc.control_period),
+            reversal_half_window=reversal_half_window(self.sc.control_period),
         )
 
 

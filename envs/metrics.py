@@ -55,7 +55,10 @@ def integral_errors(t: np.ndarray, e: np.ndarray) -> dict[str, float]:
     }
 
 
-def final_error(e: np.ndarray, fraction: float = 0.1) -> float:
+FINAL_FRACTION = 0.1  # the share of an episode final_error averages over
+
+
+def final_error(e: np.ndarray, fraction: float = FINAL_FRACTION) -> float:
     """Steady-state error: mean |e| over the last `fraction` of the episode."""
     n = max(1, round(len(e) * fraction))
     return float(np.mean(np.abs(e[-n:])))
@@ -124,15 +127,28 @@ def stick_slip_events(v: np.ndarray, threshold: float) -> int:
     return int(np.count_nonzero(moving[1:] & ~moving[:-1]))
 
 
-def reversal_peak_error(t: np.ndarray, r: np.ndarray, e: np.ndarray, half_window: float) -> float:
-    """Largest |e| within ±half_window (s) of each reference velocity reversal; nan if r never reverses."""
-    dr = np.diff(r)
-    sign = np.sign(dr)
+def reversal_half_window(control_period: float) -> float:
+    """The half width (s) of the window around a reversal reversal_peak_error reads: 0.25 s, at least five
+    control periods."""
+    return max(0.25, 5 * control_period)
+
+
+def reversal_windows(t: np.ndarray, r: np.ndarray, half_window: float) -> np.ndarray:
+    """The samples within ±half_window (s) of a reference velocity reversal (bool mask; none if r never
+    reverses)."""
+    sign = np.sign(np.diff(r))
     nz = np.flatnonzero(sign != 0)
     rev = nz[1:][sign[nz[1:]] != sign[nz[:-1]]]
-    if len(rev) == 0:
-        return float("nan")
-    return float(max(np.max(np.abs(e[(t >= t[i] - half_window) & (t <= t[i] + half_window)])) for i in rev))
+    near = np.zeros(len(t), dtype=bool)
+    for i in rev:
+        near |= (t >= t[i] - half_window) & (t <= t[i] + half_window)
+    return near
+
+
+def reversal_peak_error(t: np.ndarray, r: np.ndarray, e: np.ndarray, half_window: float) -> float:
+    """Largest |e| within ±half_window (s) of each reference velocity reversal; nan if r never reverses."""
+    near = reversal_windows(t, r, half_window)
+    return float(np.max(np.abs(e[near]))) if near.any() else float("nan")
 
 
 def effort(u: np.ndarray) -> dict[str, float]:

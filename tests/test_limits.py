@@ -19,8 +19,8 @@ TWIN = {"nonlinear_friction": False}
 
 
 def test_the_twin_draws_the_same_episode_without_the_nonlinear_friction():
-    """Every draw (inertia, viscous, delay, noise, initial state, σ's) is the episode's own; only the
-    Coulomb, static and bias levels are 0."""
+    """Every draw (inertia, viscous, delay, noise, initial state, σ0, σ2, vs) is the episode's own; only
+    the Coulomb, static and bias levels and the bristle damping σ1 are 0."""
     env, twin = (
         ServoEnv("m220_reversal_tracking", randomize=True),
         ServoEnv("m220_reversal_tracking", randomize=True, overrides=TWIN),
@@ -37,8 +37,8 @@ def test_the_twin_draws_the_same_episode_without_the_nonlinear_friction():
             q.actuator_gain,
         )
         for f, h in zip(p.friction, q.friction, strict=True):
-            assert f.fc > 0 and (h.fc, h.fs, h.bias) == (0.0, 0.0, 0.0)
-            assert (f.sigma0, f.sigma1, f.sigma2, f.vs) == (h.sigma0, h.sigma1, h.sigma2, h.vs)
+            assert f.fc > 0 and f.sigma1 > 0 and (h.fc, h.fs, h.bias, h.sigma1) == (0.0, 0.0, 0.0, 0.0)
+            assert (f.sigma0, f.sigma2, f.vs) == (h.sigma0, h.sigma2, h.vs)
         np.testing.assert_array_equal(env.ground_truth()["qpos"], twin.ground_truth()["qpos"])
 
 
