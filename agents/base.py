@@ -46,6 +46,7 @@ class Controller(ABC):
     sensor_kinds: ClassVar[tuple[str, ...]] = ("encoder", "tacho")
     tasks: ClassVar[tuple[str, ...]] = TASKS
     steps_arrays: ClassVar[bool] = False  # act_episodes acts on ctx.episodes episodes at once
+    plans: ClassVar[bool] = False  # the evaluation loop calls plan with the episodes before they start
 
     def why_not(self, scenario: Scenario) -> str | None:
         """None if this controller is defined for the scenario, else a one-line reason."""
@@ -78,6 +79,12 @@ class Controller(ABC):
         """The episode's ground truth at this control instant (ServoEnv.ground_truth) and its drawn
         parameters, for controllers with reads_truth (the Oracle reference, never an entry); `row`: which
         of the episodes a controller that steps arrays acts on."""
+        return None
+
+    def plan(self, episodes: Sequence[Any]) -> None:
+        """For controllers with plans (the friction-free optimum, a reference row, never an entry): the
+        episodes (envs.suites.Episode, in the order of the rows it will act on) before they start, to
+        compute their commands from each whole episode."""
         return None
 
     @abstractmethod

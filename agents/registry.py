@@ -34,6 +34,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from frictiongym.agents.evaluation.limits import Ideal, Oracle, TrackingLimit
+from frictiongym.agents.evaluation.optimum import Optimum
 from frictiongym.agents.learned.folder import read_policy, read_sealed
 from frictiongym.agents.learned.manifest import MANIFEST, Manifest
 from frictiongym.agents.learned.policy import LearnedPolicy, policy_why_not
@@ -158,6 +159,7 @@ LIMITS: dict[str, Callable[[], Controller]] = {
     "Ideal": partial(Ideal, uncompensated_loop),
     "TrackingLimit": partial(TrackingLimit, uncompensated_loop, linear_loop),
     "Oracle": partial(Oracle, uncompensated_loop),
+    "Optimum": Optimum,
 }
 REFERENCES = (ZERO, *LIMITS)
 

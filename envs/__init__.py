@@ -2,11 +2,11 @@
 
 Importing this package registers two kinds of Gymnasium id (`frictiongym list` prints them):
 
-- one per plant, frictiongym/M220-v0, frictiongym/FlexibleServo-v0, frictiongym/KangRobot-v0 and
-  frictiongym/EMPS-v0, taking scenario= (default: the plant's default scenario) and keyword overrides.
+- one per plant, frictiongym/M220-v1, frictiongym/FlexibleServo-v1, frictiongym/KangRobot-v1 and
+  frictiongym/EMPS-v1, taking scenario= (default: the plant's default scenario) and keyword overrides.
   Their max_episode_steps is the default scenario's length; a scenario= or episode_s= whose episode is
   longer is refused in one line naming the per-scenario id to use (its TimeLimit would cut the episode).
-- one per scenario, e.g. frictiongym/M220-ReversalTracking-v0 for m220_reversal_tracking (the plant's
+- one per scenario, e.g. frictiongym/M220-ReversalTracking-v1 for m220_reversal_tracking (the plant's
   name, then the scenario's name without its plant prefix), whose max_episode_steps is that scenario's
   episode length, so TimeLimit, TimeAwareObservation and anything reading env.spec agree with the env.
 
@@ -24,21 +24,29 @@ import gymnasium as gym
 from gymnasium.envs import registration
 from gymnasium.envs.registration import EnvSpec
 
-ENV_IDS = {  # id -> (single env, vector env over mujoco.batch for gym.make_vec)
-    "frictiongym/M220-v0": ("servo_env:M220Env", "vector:m220_vector"),
-    "frictiongym/FlexibleServo-v0": ("servo_env:FlexibleServoEnv", "vector:flexible_servo_vector"),
-    "frictiongym/KangRobot-v0": ("servo_env:KangRobotEnv", "vector:kang_robot_vector"),
-    "frictiongym/EMPS-v0": ("servo_env:EMPSEnv", "vector:emps_vector"),
+VERSION = "v1"  # every id's version: a change that can alter learning results bumps it (VERSION_HISTORY)
+PLANT_NAMES = {  # a scenario file's prefix -> its plant's id name (tests check every scenario's plant)
+    "m220": "M220",
+    "flexible": "FlexibleServo",
+    "kang": "KangRobot",
+    "emps": "EMPS",
 }
-VERSION_HISTORY = {  # an env id's version: a change that can alter learning results bumps it (docs/envs)
+ENTRIES = {  # id name -> (single env, vector env over mujoco.batch for gym.make_vec)
+    "M220": ("servo_env:M220Env", "vector:m220_vector"),
+    "FlexibleServo": ("servo_env:FlexibleServoEnv", "vector:flexible_servo_vector"),
+    "KangRobot": ("servo_env:KangRobotEnv", "vector:kang_robot_vector"),
+    "EMPS": ("servo_env:EMPSEnv", "vector:emps_vector"),
+}
+ENV_IDS = {f"frictiongym/{name}-{VERSION}": entries for name, entries in ENTRIES.items()}
+VERSION_HISTORY = {  # what each version changed (docs/envs.md, "Versions")
     "v0": "first release: the four plants and their scenarios as configs/ holds them",
+    "v1": "a delay of whole physics steps reads the same history sample at every step (it read one step "
+    "later after about 32,000 steps, 16 s on a 0.5 ms step, from the rounding of MuJoCo's time: episodes "
+    "longer than that changed); the M220's belts hold a constant constraint impedance (a linear "
+    "spring-damper; the default impedance grew with the stretch); the friction-free twin "
+    "(nonlinear_friction false) drops the bristle damping σ1 too",
 }
-PREFIXES = {  # a scenario file's name starts with its plant's prefix (tests check every scenario's plant)
-    "m220": "frictiongym/M220-v0",
-    "flexible": "frictiongym/FlexibleServo-v0",
-    "kang": "frictiongym/KangRobot-v0",
-    "emps": "frictiongym/EMPS-v0",
-}
+PREFIXES = {prefix: f"frictiongym/{name}-{VERSION}" for prefix, name in PLANT_NAMES.items()}
 
 
 @cache
@@ -86,7 +94,7 @@ def env_id(plant: str) -> str:
 def scenario_env_id(scenario: str) -> str:
     """The registered id of a scenario of configs/scenarios/ (a name such as m220_reversal_tracking):
     its plant's id with the scenario's name, without its plant prefix, in CamelCase before the version
-    (frictiongym/M220-ReversalTracking-v0)."""
+    (frictiongym/M220-ReversalTracking-v1)."""
     prefix, _, rest = scenario.partition("_")
     if prefix not in PREFIXES or not rest:
         raise ValueError(f"scenario {scenario!r} does not start with a plant prefix {list(PREFIXES)}")

@@ -24,7 +24,7 @@ and/or speed_rad_s|speed_deg_s, and for holds/ramps a segment column (one per ho
 speed_reference_rad_s (docs/identification.md). --simulate runs the same experiments on a plant of the
 suite (randomised with --randomize) and saves their logs. --document uses the M220's own data (Iurian et al.
 2005 §2.2-2.3). Writes DIR/report.md, result.json, fit plots and identified.yaml:
-    gym.make("frictiongym/M220-<Scenario>-v0", overrides=yaml.safe_load(open("DIR/identified.yaml")))
+    gym.make("frictiongym/M220-<Scenario>-v1", overrides=yaml.safe_load(open("DIR/identified.yaml")))
 """
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
 """rl-baselines3-zoo with the frictiongym envs registered, and zoo agents judged on the validation suite.
 
-    frictiongym zoo train --algo sac --env frictiongym/KangRobot-Regulation-v0 \
+    frictiongym zoo train --algo sac --env frictiongym/KangRobot-Regulation-v1 \
         --conf-file configs/zoo/sac.yml
-    frictiongym zoo record_video --algo sac --env frictiongym/KangRobot-Regulation-v0 -f logs -n 500
-    frictiongym zoo validate --algo sac --env frictiongym/KangRobot-Regulation-v0 -f logs --trust-pickle
+    frictiongym zoo record_video --algo sac --env frictiongym/KangRobot-Regulation-v1 -f logs -n 500
+    frictiongym zoo validate --algo sac --env frictiongym/KangRobot-Regulation-v1 -f logs --trust-pickle
 
 train, enjoy and record_video are the zoo's own commands and take its options (record_video has no
 --gym-packages, hence this front end; videos need the video extra and MUJOCO_GL=egl). validate runs
@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     what = "a zoo run against the best classical baseline (validation suite)"
     v = sub.add_parser("validate", help=what, description=what, formatter_class=Formatter)
     v.add_argument("--algo", required=True, help="the zoo's algorithm, e.g. sac")
-    v.add_argument("--env", required=True, help="a frictiongym id, e.g. frictiongym/KangRobot-Regulation-v0")
+    v.add_argument("--env", required=True, help="a frictiongym id, e.g. frictiongym/KangRobot-Regulation-v1")
     v.add_argument("-f", "--folder", default="logs", help="the zoo's log folder")
     v.add_argument("--exp-id", type=int, default=0, help="0: the latest run")
     v.add_argument("--episodes", type=int, default=10, help="first validation-suite episodes")

@@ -37,13 +37,13 @@ def test_the_site_builds_without_warnings_and_its_links_resolve(tmp_path):
     assert {"index.html", "installation.html", "quickstart.html", "changelog.html", "troubleshooting.html",
             "tutorials/index.html", "generated/api/index.html", "generated/scenarios.html",
             "leaderboard/index.html"} <= pages  # fmt: skip
-    for plant, env_id in [("m220", "frictiongym/M220-v0"), ("emps", "frictiongym/EMPS-v0")]:
+    for plant, env_id in [("m220", "frictiongym/M220-v1"), ("emps", "frictiongym/EMPS-v1")]:
         page = (site / "generated" / "plants" / f"{plant}.html").read_text()
         assert env_id in page and f"_images/{plant}.png" in page
         assert (site / "_images" / f"{plant}.png").is_file()
     emps = (site / "generated" / "plants" / "emps.html").read_text()
     # the carriage's identified mass with its unit (a slide: kg, not kg·m²), its scenarios' ids
-    assert "95.11 kg" in emps and "frictiongym/EMPS-Tracking-v0" in emps
+    assert "95.11 kg" in emps and "frictiongym/EMPS-Tracking-v1" in emps
     api = site / "generated" / "api"
     assert 'id="frictiongym.agents.registry.make"' in (api / "frictiongym.agents.registry.html").read_text()
     assert 'id="frictiongym.envs.servo_env.ServoEnv"' in (api / "frictiongym.envs.servo_env.html").read_text()

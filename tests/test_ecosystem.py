@@ -22,7 +22,7 @@ from frictiongym.envs.config import ConfigError, configs_dir, scenario_names
 from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.vector import ServoVectorEnv, make_sb3_vec_env
 
-KANG = "frictiongym/KangRobot-v0"
+KANG = "frictiongym/KangRobot-v1"
 ROOT = Path(__file__).resolve().parents[1]
 IDS = list(ENV_IDS)
 
@@ -138,7 +138,7 @@ def test_every_id_works_with_time_wrappers_and_the_zoos_evaluation(env_id):
 
 @pytest.mark.parametrize("scenario", scenario_names())
 def test_every_scenario_has_its_own_id_with_its_length(scenario):
-    """frictiongym/<Plant>-<Scenario>-v0 makes the scenario on its plant's env, and its spec's
+    """frictiongym/<Plant>-<Scenario>-v1 makes the scenario on its plant's env, and its spec's
     max_episode_steps is the scenario's length (for gym.make's TimeLimit and gym.make_vec alike)."""
     sc = load_scenario(scenario)
     id_ = scenario_env_id(scenario)
@@ -165,7 +165,7 @@ def _plant_scenarios(plant: str) -> list[str]:
 
 
 def test_time_wrappers_agree_with_the_env():
-    env = gym.wrappers.TimeAwareObservation(gym.make("frictiongym/KangRobot-Regulation-v0"))  # needs the
+    env = gym.wrappers.TimeAwareObservation(gym.make("frictiongym/KangRobot-Regulation-v1"))  # needs the
     # spec's max_episode_steps: a per-scenario id
     obs, _ = env.reset(seed=1)
     assert obs[-1] == 0.0
@@ -197,7 +197,7 @@ def test_undefined_metrics_stay_nan_in_results():
 
 @pytest.mark.parametrize("how", ["deepcopy", "pickle"])
 def test_a_copy_after_reset_steps_on_from_the_same_state(how):
-    env = gym.make("frictiongym/M220-ReversalTrackingHard-v0", randomize=True)
+    env = gym.make("frictiongym/M220-ReversalTrackingHard-v1", randomize=True)
     env.reset(seed=4)
     rng = np.random.default_rng(1)
     for _ in range(50):

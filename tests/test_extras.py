@@ -44,7 +44,7 @@ def test_every_sub_command_s_help_works_without_the_extras(command):
     ("args", "extra"),
     [
         (["train", "--config", "residual_sac"], "rl"),
-        (["zoo", "validate", "--algo", "sac", "--env", "frictiongym/KangRobot-Regulation-v0"], "rl,zoo"),
+        (["zoo", "validate", "--algo", "sac", "--env", "frictiongym/KangRobot-Regulation-v1"], "rl,zoo"),
         (["zoo", "train", "--algo", "sac"], "rl,zoo"),
         (["bench-training", "residual_sac", "--scenario", "kang_regulation"], "rl"),
     ],

@@ -124,7 +124,7 @@ def test_csv_round_trip_identify_and_load_into_an_env(tmp_path):
     assert main(["friction", "--csv", str(tmp_path / "holds.csv"), "--out", str(tmp_path / "id")]) == 0
     overrides = yaml.safe_load((tmp_path / "id" / "identified.yaml").read_text())
     assert "holds.csv (sha256" in overrides["plant_overrides"]["friction_identified"]["source"]
-    env = gym.make("frictiongym/M220-ReversalTracking-v0", overrides=overrides)
+    env = gym.make("frictiongym/M220-ReversalTracking-v1", overrides=overrides)
     got = drive_friction(env.unwrapped.scenario.spec)
     truth = drive_friction(rig.spec)
     assert got.coulomb_pos == pytest.approx(truth.coulomb_pos, rel=0.01)

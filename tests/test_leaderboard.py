@@ -23,20 +23,21 @@ def test_same_episodes_for_every_controller_and_sorted_table():
     kang = [r for r in results if r.scenario == "kang_regulation_20deg"]
     # the reference rows and every scenario's uncompensated loop (PD here, PID on the speed loop) always
     # run, each on every scenario it applies to, on the same episode
-    assert {r.controller for r in kang} == {"Zero", "Ideal", "Oracle", "PD", "PID", "RDFC"}
+    assert {r.controller for r in kang} == {"Zero", "Ideal", "Oracle", "Optimum", "PD", "PID", "RDFC"}
     assert {r.seed for r in kang} == {0}
     rows = table["kang_regulation_20deg"]
-    # sorted by the main metric (final error): PD without friction stops ~1e-8 rad from the set-point,
-    # the perfect friction observer and RDFC remove most of the PD's stick-slip error, Zero stays at 20 deg
-    assert [r["controller"] for r in rows] == ["Ideal", "Oracle", "RDFC", "PID", "PD", "Zero"]
-    assert [r["reference"] for r in rows] == [True, True, False, False, False, True]
+    # sorted by the main metric (final error): the friction-free optimum holds the set-point to rounding,
+    # PD without friction stops ~1e-8 rad from it, the perfect friction observer and RDFC remove most of
+    # the PD's stick-slip error, Zero stays at 20 deg
+    assert [r["controller"] for r in rows] == ["Optimum", "Ideal", "Oracle", "RDFC", "PID", "PD", "Zero"]
+    assert [r["reference"] for r in rows] == [True, True, True, False, False, False, True]
     g = {r["controller"]: r["g"][0] for r in rows}
     assert g["PD"] == 0.0 and g["Ideal"] > 1.0 and g["RDFC"] > 0.5 and g["Zero"] < 0.0  # log score
-    assert rows[2]["vs_baseline"] is None and rows[4]["vs_baseline"]["p_improve"] == 0.0
+    assert rows[3]["vs_baseline"] is None and rows[5]["vs_baseline"]["p_improve"] == 0.0
     # RDFC and PD do not apply to a speed loop; its uncompensated loop is PID; a tracking scenario has the
     # tracking limit
     assert {r["controller"] for r in table["flexible_speed_step"]} == {
-        "Zero", "Ideal", "TrackingLimit", "Oracle", "PID"}
+        "Zero", "Ideal", "TrackingLimit", "Oracle", "Optimum", "PID"}
 
 
 def test_unknown_controller_is_a_clear_error():

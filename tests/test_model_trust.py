@@ -317,7 +317,7 @@ def test_zoo_config_is_read_safely(tmp_path):
     is refused before it is constructed."""
     from frictiongym.agents.training.zoo import zoo_config
 
-    params = tmp_path / "run" / "KangRobot-v0"
+    params = tmp_path / "run" / "KangRobot-v1"
     params.mkdir(parents=True)
     (params / "config.yml").write_text(
         "!!python/object/apply:collections.OrderedDict\n- - - n_timesteps\n    - 2000\n  - - policy\n"

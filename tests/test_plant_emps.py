@@ -138,7 +138,7 @@ def test_a_recorded_reference_naming_a_missing_signal_is_refused():
 
 
 def test_the_emps_env_runs_and_its_episode_is_the_recordings_first_cycle():
-    env = gym.make("frictiongym/EMPS-Tracking-v0")
+    env = gym.make("frictiongym/EMPS-Tracking-v1")
     obs, _ = env.reset(seed=3)
     assert env.spec.max_episode_steps == 6200 and obs.dtype == np.float32
     _, _, term, trunc, info = env.step(np.zeros(1, dtype=np.float32))

@@ -110,7 +110,7 @@ def _sb3():
 def _gym_vector():
     import gymnasium as gym
 
-    env = gym.make_vec("frictiongym/KangRobot-v0", num_envs=2)
+    env = gym.make_vec("frictiongym/KangRobot-v1", num_envs=2)
     return env, lambda: env.step(np.zeros((2, 1), np.float32))
 
 
@@ -170,7 +170,7 @@ def test_helpers_round_trip_a_valid_command():
     env = ServoEnv("kang_regulation")
     u = 0.3 * env.scenario.action_scale
     assert env.action_to_command(env.command_to_action(u)) == pytest.approx(u, rel=1e-6)
-    assert frictiongym.envs.env_id("kang_robot") == "frictiongym/KangRobot-v0"
+    assert frictiongym.envs.env_id("kang_robot") == "frictiongym/KangRobot-v1"
 
 
 # ------------------------------------------------------------------ every numeric key, huge and tiny

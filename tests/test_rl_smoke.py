@@ -29,7 +29,7 @@ def test_ppo_on_the_batched_vec_env():
 
 
 def _episode_return(policy, seed: int) -> float:
-    env = gym.make("frictiongym/KangRobot-v0")
+    env = gym.make("frictiongym/KangRobot-v1")
     obs, _ = env.reset(seed=seed)
     total, done = 0.0, False
     while not done:
@@ -43,7 +43,7 @@ def _episode_return(policy, seed: int) -> float:
 def test_short_sac_run_beats_random_and_zero_policies():
     """4000 steps (~45 s CPU). Random torques score about -1900 per episode, zero torque -500 (the rotor
     stays at 20 deg); a learned regulator must at least halve the zero policy's cost."""
-    env = gym.make("frictiongym/KangRobot-v0")
+    env = gym.make("frictiongym/KangRobot-v1")
     model = SAC("MlpPolicy", env, seed=0, learning_starts=1000).learn(4000)
     rng = np.random.default_rng(0)
     seeds = [11, 12]
@@ -58,7 +58,7 @@ def test_a_learned_policy_runs_through_the_same_evaluation_loop():
     from frictiongym.agents.learned.policy import LearnedPolicy
     from frictiongym.envs.suites import Episode
 
-    env = gym.make("frictiongym/KangRobot-v0", episode_s=0.4)
+    env = gym.make("frictiongym/KangRobot-v1", episode_s=0.4)
     model = PPO("MlpPolicy", env, n_steps=64, batch_size=32, seed=0).learn(64)
     res = evaluate(
         [LearnedPolicy(model, ("kang_robot",), "ppo-tiny")],

@@ -54,7 +54,7 @@ def test_ground_truth_is_a_method_and_in_info_on_request():
 
 def test_wrong_plant_for_id_is_rejected():
     with pytest.raises(ValueError, match="is for plant"):
-        gym.make("frictiongym/KangRobot-v0", scenario="m220_regulation")
+        gym.make("frictiongym/KangRobot-v1", scenario="m220_regulation")
 
 
 @pytest.mark.parametrize(
@@ -73,12 +73,12 @@ def test_wrong_plant_for_id_is_rejected():
 )
 def test_invalid_scenario_values_name_the_field(kwargs, field):
     with pytest.raises(ConfigError) as e:
-        gym.make("frictiongym/KangRobot-v0", **kwargs)
+        gym.make("frictiongym/KangRobot-v1", **kwargs)
     assert e.value.field == field
 
 
 def test_nan_action_is_a_clear_error():
-    env = gym.make("frictiongym/KangRobot-v0")
+    env = gym.make("frictiongym/KangRobot-v1")
     env.reset(seed=0)
     with pytest.raises(ValueError, match="finite"):
         env.step(np.array([np.nan], dtype=np.float32))
@@ -86,7 +86,7 @@ def test_nan_action_is_a_clear_error():
 
 def test_same_seed_same_episode_different_seed_different_episode():
     def run(seed):
-        env = gym.make("frictiongym/KangRobot-v0", randomize=True, episode_s=1.0)
+        env = gym.make("frictiongym/KangRobot-v1", randomize=True, episode_s=1.0)
         obs, info = env.reset(seed=seed)
         out = [obs]
         rng = np.random.default_rng(0)
@@ -102,7 +102,7 @@ def test_same_seed_same_episode_different_seed_different_episode():
 
 def test_episode_structure_ground_truth_and_metrics():
     # flexible_speed_step: 10 s at 40 ms
-    env = gym.make("frictiongym/FlexibleServo-v0", ground_truth_in_info=True)
+    env = gym.make("frictiongym/FlexibleServo-v1", ground_truth_in_info=True)
     _, info = env.reset(seed=0)
     assert {"params", "qpos", "qvel", "bristle", "friction_torque"} <= set(info)
     assert info["qvel"][0] == pytest.approx(1.0)  # ω1(0) = 1 rad/s, Wallenborg §4.3
@@ -121,7 +121,7 @@ def test_episode_structure_ground_truth_and_metrics():
 
 
 def test_observation_layout_and_scaling_helpers():
-    env = gym.make("frictiongym/M220-ReversalTracking-v0")
+    env = gym.make("frictiongym/M220-ReversalTracking-v1")
     obs, _ = env.reset(seed=0)
     u = env.unwrapped
     assert obs.shape == (2 + 1 + 5 + 1,)
@@ -145,7 +145,7 @@ def test_privileged_observation_only_on_request():
 
 
 def test_divergence_ends_the_episode_with_a_flag_and_finite_observation():
-    env = gym.make("frictiongym/KangRobot-v0")
+    env = gym.make("frictiongym/KangRobot-v1")
     env.reset(seed=0)
     core = env.unwrapped.core
     core.model.actuator_dynprm[core.idx.friction[0], 6] = (
@@ -158,7 +158,7 @@ def test_divergence_ends_the_episode_with_a_flag_and_finite_observation():
 def test_rgb_render_headless_and_episode_plot(tmp_path):
     code = (
         "import gymnasium as gym, frictiongym.envs, numpy as np;"
-        "e=gym.make('frictiongym/M220-v0', render_mode='rgb_array'); e.reset(seed=0);"
+        "e=gym.make('frictiongym/M220-v1', render_mode='rgb_array'); e.reset(seed=0);"
         "f=e.render(); assert f.shape == (480, 640, 3) and f.std() > 1, f.std();"
         f"e.unwrapped.plot_episode(r'{tmp_path / 'ep.png'}')"
     )

@@ -28,6 +28,25 @@ def test_command_acts_from_exactly_tk_plus_tau(delay_steps):
     assert first == pytest.approx(t_k + delay_steps * h, abs=1e-12)
 
 
+def test_the_delay_stays_the_same_over_a_long_episode():
+    """A command given at step i acts from step i + 3 at every step of 60 s (120,000 steps of 0.5 ms), not
+    one step later once the accumulated time's rounding crosses the stored timestamps (it did after 16 s
+    when the delay was exactly 3 steps): each step's command is distinct, so the force says which step's
+    command acts."""
+    sim = PlantSim("kang_robot")
+    h = sim.spec.timestep
+    p = EpisodeParams.nominal(sim.spec)
+    sim.reset(EpisodeParams(**{**p.__dict__, "delay": 3 * h}))
+    n = round(60.0 / h)
+    given = np.arange(n) % 1000 * 1e-4  # distinct values within the command limit
+    acted = np.empty(n)
+    for i in range(n):
+        sim.data.ctrl[sim.idx.drive_ctrl] = given[i]
+        mujoco.mj_step(sim.model, sim.data)
+        acted[i] = sim.data.actuator_force[sim.idx.drive]
+    np.testing.assert_array_equal(acted[3:], given[:-3] * sim.model.actuator_gear[sim.idx.drive, 0])
+
+
 def test_command_is_held_over_the_period_and_clipped():
     sim = PlantSim("flexible_servo")
     sim.reset()

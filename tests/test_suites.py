@@ -23,7 +23,7 @@ def test_suites_are_defined_and_test_seeds_are_held_out():
     e = default[0]
     code = (
         "import gymnasium as gym, frictiongym.envs;"
-        f"e=gym.make('frictiongym/KangRobot-v0', scenario='{e.scenario}', randomize=True);"
+        f"e=gym.make('frictiongym/KangRobot-v1', scenario='{e.scenario}', randomize=True);"
         f"print(e.reset(seed={e.seed})[1]['params'])"
     )
     out = subprocess.run(

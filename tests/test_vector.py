@@ -91,7 +91,7 @@ def _stepped_once(seed: int) -> np.ndarray:
 
 
 def test_make_vec_uses_the_batched_env_and_matches_single_envs():
-    venv = gym.make_vec("frictiongym/KangRobot-v0", num_envs=2, vectorization_mode="vector_entry_point")
+    venv = gym.make_vec("frictiongym/KangRobot-v1", num_envs=2, vectorization_mode="vector_entry_point")
     assert isinstance(venv, ServoVectorEnv)
     obs, _ = venv.reset(seed=3)
     single = ServoEnv("kang_regulation")

@@ -42,8 +42,8 @@ def test_zoo_file_has_an_entry_per_plant_on_a_per_scenario_id():
 
 
 def test_residual_wrapper_with_a_zero_residual_is_its_base_bit_for_bit():
-    wrapped = Residual(gym.make("frictiongym/KangRobot-v0", randomize=True), "Southward", 0.05)
-    plain, base = gym.make("frictiongym/KangRobot-v0", randomize=True), make("Southward")
+    wrapped = Residual(gym.make("frictiongym/KangRobot-v1", randomize=True), "Southward", 0.05)
+    plain, base = gym.make("frictiongym/KangRobot-v1", randomize=True), make("Southward")
     from frictiongym.agents.base import EpisodeContext
     from frictiongym.agents.settings import knowledge_defaults
 
@@ -61,9 +61,9 @@ def test_residual_wrapper_with_a_zero_residual_is_its_base_bit_for_bit():
 
 def test_residual_wrapper_refuses_a_base_that_brings_hardware():
     with pytest.raises(ConfigError, match="RDFC brings hardware"):
-        Residual(gym.make("frictiongym/KangRobot-v0"), "RDFC", 0.05)
+        Residual(gym.make("frictiongym/KangRobot-v1"), "RDFC", 0.05)
     with pytest.raises(ConfigError, match="does not apply"):
-        Residual(gym.make("frictiongym/M220-v0"), "RDFC", 0.05)
+        Residual(gym.make("frictiongym/M220-v1"), "RDFC", 0.05)
 
 
 def _run(*args: str, env: dict) -> str:
@@ -75,7 +75,7 @@ def _run(*args: str, env: dict) -> str:
 @pytest.mark.slow
 def test_zoo_train_then_load_as_a_controller_then_record_video(tmp_path):
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl"), "OMP_NUM_THREADS": "1"}
-    common = ["--algo", "sac", "--env", "frictiongym/M220-ReversalTracking-v0", "-f", str(tmp_path / "logs")]
+    common = ["--algo", "sac", "--env", "frictiongym/M220-ReversalTracking-v1", "-f", str(tmp_path / "logs")]
     zoo = str(ROOT / "scripts" / "zoo.py")
     train = [
         "--gym-packages",
@@ -90,7 +90,7 @@ def test_zoo_train_then_load_as_a_controller_then_record_video(tmp_path):
         "1",
     ]
     _run("-m", "rl_zoo3.train", *common, *train, "--seed", "1", env=env)
-    run = zoo_run(tmp_path / "logs", "sac", "frictiongym/M220-ReversalTracking-v0")
+    run = zoo_run(tmp_path / "logs", "sac", "frictiongym/M220-ReversalTracking-v1")
     assert "scenario" not in zoo_env_kwargs(run)  # the id carries it
     policy = zoo_policy(run, "sac", trust_pickle=True)
     assert policy.base.name == "CoulombViscousFF" and policy.alpha == 0.1

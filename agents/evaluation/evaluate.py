@@ -257,6 +257,8 @@ def _run_together(
         core = cache.core(env, n)
         for i, e in enumerate(episodes):
             obs[i] = core.reset(rows[i : i + 1], [e.seed], check_options(e.options()))[0]
+    if controller.plans:
+        controller.plan(episodes)
     team = controller.lockstep(n)
     team.reset(EpisodeContext(sc, design, know))
     totals, diverged, live = np.zeros(n), np.zeros(n, dtype=bool), rows

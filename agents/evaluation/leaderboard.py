@@ -2,7 +2,9 @@
 
 Reference rows, run on every episode and never ranked (agents/evaluation/limits.py): `Zero` (doing nothing),
 the scenario's uncompensated loop (benchmark.uncompensated, also an entry), `Ideal` (that loop on the
-friction-free twin of the episode) and `Oracle` (that loop plus the true friction torque).
+friction-free twin of the episode), `Oracle` (that loop plus the true friction torque) and `Optimum` (the
+friction-free optimum: the best commands within the actuator's limit on the twin, knowing the whole
+reference; agents/evaluation/optimum.py).
 
 Per scenario: its main metric (declared in the scenario's YAML, lower is better) with a 95 % bootstrap
 interval, g = the friction penalty removed (stats.limit_score: 1 as if friction were gone, 0 no better

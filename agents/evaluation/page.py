@@ -179,7 +179,7 @@ def page(
         "figures</a></nav>",
         *_headline(board),
         f"<p class='note'>{_e(G_MEANING)} Reference rows (grey, never ranked): Zero, Ideal, TrackingLimit, "
-        "Oracle. Click a column's header to sort by it.</p>",
+        "Oracle, Optimum. Click a column's header to sort by it.</p>",
         "<h2 id='question'>The question per plant</h2>",
     ]
     for plant, rows in answer_rows(board).items():

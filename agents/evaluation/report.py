@@ -107,7 +107,9 @@ def markdown(board: Board) -> str:
         "or N·m; see docs/envs.md). Reference rows, on the same episodes and never ranked: `Zero` (doing",
         "nothing), `Ideal` (the uncompensated loop without the nonlinear friction), `TrackingLimit` (on",
         "tracking scenarios: the friction-free twin under the linear two-degree-of-freedom loop), `Oracle`",
-        "(the uncompensated loop plus the true friction torque, sampled and delayed as the loop is).",
+        "(the uncompensated loop plus the true friction torque, sampled and delayed as the loop is),",
+        "`Optimum` (the friction-free optimum: the best commands within the actuator's limit on the twin,",
+        "knowing the whole reference; no controller goes below it there).",
         "",
         G_MEANING,
         "",
@@ -180,7 +182,8 @@ def markdown(board: Board) -> str:
 
 
 ANSWER_HEAD = ["scenario (main metric)", "best classical", "best learned", "learned vs the classical",
-               "best plug-in", "plug-in vs the classical", "Ideal", "tracking limit"]  # fmt: skip
+               "best plug-in", "plug-in vs the classical", "Ideal", "tracking limit",
+               "friction-free optimum"]  # fmt: skip
 KINDS = ("learned", "plug-in")  # the answer's two sides against the classical: saved models, user code
 
 
@@ -191,7 +194,8 @@ def kind(board: Board, name: str) -> str:
 
 def answer_rows(board: Board) -> dict[str, list[dict]]:
     """The suite's question per plant, a row per scenario: {"scenario": "name (main metric)", "cells":
-    [best classical, best learned, its verdict, best plug-in, its verdict, Ideal, tracking limit], each
+    [best classical, best learned, its verdict, best plug-in, its verdict, Ideal, tracking limit,
+    friction-free optimum], each
     cell "n/a", a text or (text, the main metric's mean to sort by); "sides": per kind (KINDS), its best
     row, how many of its entries beat the baseline and how many ran}. The best classical is the baseline
     (the best classical row that is a result); the best of a kind is the best that beats it, else the
@@ -220,7 +224,7 @@ def answer_rows(board: Board) -> dict[str, list[dict]]:
             cells += [cell(best), verdict]
             sides[k] = {"best": best, "wins": len(wins), "entries": len(other)}
         limit = by.get("TrackingLimit") or by.get("Ideal")
-        cells += [cell(by.get("Ideal")), cell(limit)]
+        cells += [cell(by.get("Ideal")), cell(limit), cell(by.get("Optimum"))]
         by_plant.setdefault(s.spec.name, []).append(
             {
                 "scenario": f"{sc} ({s.main_metric})",
@@ -277,9 +281,11 @@ def answer(board: Board) -> str:
         "(a saved model) and the best plug-in (a user's controller), each the best of its kind that beats "
         "the baseline, else the best, whether it beats the baseline (paired 95 % interval below 0, effort "
         "and limit-cycle rule) and how many of its kind do; and the "
-        "two limits (Ideal: friction removed under the uncompensated loop; TrackingLimit: the friction-free "
-        "twin under the linear two-degree-of-freedom loop, Ideal at a set-point). Mean [95 % interval] of "
-        "the main metric, lower is better.",
+        "limits (Ideal: friction removed under the uncompensated loop; TrackingLimit: the friction-free "
+        "twin under the linear two-degree-of-freedom loop, Ideal at a set-point; the friction-free optimum: "
+        "the best commands within the actuator's limit on that twin knowing the whole reference, where no "
+        "controller goes below it; n/a where the drive's jitter makes the twin vary in time). Mean [95 % "
+        "interval] of the main metric, lower is better.",
         "",
         "## The answer",
         "",

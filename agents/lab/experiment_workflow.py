@@ -65,7 +65,7 @@ def write_identified(out: Path, values: dict[str, float], source: str) -> Path:
     }
     text = (
         "# Drive-referred friction identified by scripts/identify.py (command units, rad/s). Load it with\n"
-        '#   gym.make("frictiongym/<Plant>-v0", scenario=...,\n'
+        '#   gym.make("frictiongym/<Plant>-v1", scenario=...,\n'
         '#            overrides=yaml.safe_load(open("identified.yaml")))\n'
         + yaml.safe_dump(body, sort_keys=False)
     )

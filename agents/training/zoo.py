@@ -1,6 +1,6 @@
 """rl-baselines3-zoo support: what a zoo hyper-parameter file (configs/zoo/*.yml) names, so that
 
-    python -m rl_zoo3.train --algo sac --env frictiongym/KangRobot-v0 --gym-packages frictiongym.envs \\
+    python -m rl_zoo3.train --algo sac --env frictiongym/KangRobot-v1 --gym-packages frictiongym.envs \\
         --conf-file configs/zoo/sac.yml
 
 trains the project's residual agents; a trained zoo agent as a controller of the suite (zoo_policy), so

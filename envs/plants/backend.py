@@ -11,7 +11,7 @@ import mujoco
 import numpy as np
 from mujoco.batch import Batch, SimulationError
 
-from .params import EpisodeParams, ModelIndex, apply, apply_batch
+from .params import EpisodeParams, ModelIndex, apply, apply_batch, history_delay
 from .spec import PlantSpec
 
 # MuJoCo warnings after which it resets the simulation or ignores the command: each ends the episode
@@ -29,7 +29,7 @@ def period_delay(jitter: np.random.Generator, delay_steps: int, jitter_steps: in
     """The actuation delay over one control period (s): the episode's delay plus 0..jitter_steps whole
     physics steps, one uniform draw of the episode's jitter stream per period. The one jitter rule of the
     env's vector and single paths and of PlantSim."""
-    return (delay_steps + int(jitter.integers(0, jitter_steps + 1))) * timestep
+    return history_delay(delay_steps + int(jitter.integers(0, jitter_steps + 1)), timestep)
 
 
 def mujoco_diverged(warning_counts: np.ndarray) -> bool:

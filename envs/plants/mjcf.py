@@ -17,6 +17,12 @@ VISUAL_MASS_KG, VISUAL_INERTIA = 1e-9, 1e-12  # kg, kg·m²
 BODY_SPACING, DISK_RADIUS = 0.25, 0.08  # m: the bodies side by side along x, a hinge's disk (visual)
 
 
+# A belt's constraint impedance: MuJoCo's default solimp rises from 0.9 to 0.95 as the constraint is
+# violated, which made the M220's response depend on its amplitude (a few parts per million of the motion:
+# the friction-free twin failed superposition, tests/test_optimum.py); held at its small-stretch 0.9, a
+# belt is a linear spring-damper.
+BELT_IMPEDANCE = 0.9
+
 def body_share(j: JointSpec) -> float:
     """What the joint's body adds to its dof's inertia: kg·m² for a hinge, kg for a slide."""
     return VISUAL_MASS_KG if j.kind == "slide" else VISUAL_INERTIA
@@ -84,10 +90,11 @@ def to_mjcf(spec: PlantSpec) -> str:
         )
     if spec.disturbance_joint is not None:  # last, so the other actuators keep their ids
         actuators.append(f'<motor name="disturbance" joint="{spec.disturbance_joint}" gear="1"/>')
-    for b in spec.belts:
+    for b in spec.belts:  # a constant impedance (solimp's small-stretch 0.9): a linear spring-damper
         extra.append(
             f'<equality><joint joint1="{b.driven}" joint2="{b.driver}" polycoef="0 {b.ratio!r} 0 0 0" '
-            f'solref="{spec.belt_timeconst!r} 1"/></equality>'
+            f'solimp="{BELT_IMPEDANCE} {BELT_IMPEDANCE} 0.001 0.5 2" solref="{spec.belt_timeconst!r} 1"/>'
+            "</equality>"
         )
     for s in spec.springs:
         extra.append(

@@ -22,6 +22,15 @@ from .spec import RANDOMIZATION_KEYS, PlantSpec
 PER_JOINT = ("friction_scale", "asymmetry_shift", "sigma0_scale", "stribeck_velocity_scale", "viscous_scale")
 
 
+def history_delay(steps: int, timestep: float) -> float:
+    """The actuator_delay (s) that applies the command given `steps` physics steps ago. MuJoCo's
+    zero-order hold reads its history at time − delay; a delay of exactly steps·timestep lands on a stored
+    timestamp, where the rounding of the accumulated time picks the sample steps or steps + 1 back (on a
+    0.5 ms step it switched from 3 to 4 after 32,000 steps, 16 s: tests/test_sim.py). Half a step less
+    reads the same sample at every step."""
+    return (steps - 0.5) * timestep if steps > 0 else 0.0
+
+
 @dataclass(frozen=True)
 class EpisodeParams:
     """Runtime-changeable parameters of one episode (SI).
@@ -269,7 +278,7 @@ def _fields(spec: PlantSpec, idx: ModelIndex, p: EpisodeParams) -> dict[str, lis
         w["actuator_dynprm"] += [((a, 5), e.sigma0), ((a, 6), e.sigma1)]
         w["actuator_biasprm"] += [((a, 3), e.fc), ((a, 4), e.fs), ((a, 5), e.vs)]
     w["actuator_gear"].append(((idx.drive, 0), p.actuator_gain))
-    w["actuator_delay"].append(((idx.drive,), p.delay_steps(spec) * spec.timestep))
+    w["actuator_delay"].append(((idx.drive,), history_delay(p.delay_steps(spec), spec.timestep)))
     if idx.rate >= 0:
         kv = max(p.rate_feedback, 1e-12)
         w["actuator_gainprm"].append(((idx.rate, 0), kv))
