@@ -39,6 +39,7 @@ COMMANDS = {  # subcommand -> module of frictiongym.scripts
     "bench-envs": "bench_envs",
     "bench-physics": "bench_physics",
     "bench-leaderboard": "bench_leaderboard",
+    "bench-versions": "bench_versions",
     "bench-training": "bench_training",
     "bench-runtime": "bench_runtime",
     "bench-cli": "bench_cli",

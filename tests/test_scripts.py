@@ -73,6 +73,29 @@ def test_bench_physics_prints_a_ratio_per_plant():
     assert all(0.1 < float(ln.split()[-1]) < 10 for ln in lines)
 
 
+@pytest.mark.slow  # two small leaderboards
+def test_bench_versions_times_both_versions_and_removes_its_worktree():
+    """Both versions run the same small leaderboard, each time is printed and the ratio of the medians;
+    the other version's temporary worktree is gone afterwards."""
+    worktrees = ["git", "-C", str(ROOT), "worktree", "list"]
+    before = subprocess.run(worktrees, capture_output=True, text=True).stdout
+    args = ["--scenarios", "kang_regulation", "--seeds", "5000", "--controllers", "PD", "--models"]
+    args += ["--workers", "1"]
+    proc = subprocess.run(
+        [sys.executable, "-m", "frictiongym.scripts.cli", "bench-versions", "--against", "HEAD", "--", *args],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.strip().splitlines()
+    assert lines[0].startswith("round 1: this checkout: ") and lines[1].startswith("round 1: HEAD: ")
+    times = [float(ln.split(": ")[-1].removesuffix(" s")) for ln in lines[:2]]
+    assert lines[2].startswith(f"median: this checkout {times[0]:.1f} s, HEAD {times[1]:.1f} s: ")
+    assert float(lines[2].split(": ")[-1].removesuffix("x")) == pytest.approx(times[0] / times[1], abs=0.03)
+    assert subprocess.run(worktrees, capture_output=True, text=True).stdout == before
+
+
 @pytest.mark.parametrize("scenario", ["m220_regulation", "kang_regulation", "flexible_speed_step"])
 def test_bench_envs_bare_loops_step_the_envs_physics(scenario):
     """The speed ratios compare like with like: with a zero action, the bare loops (single and Batch)
