@@ -71,8 +71,10 @@ def test_script_writes_markdown_csv_and_plots(tmp_path):
     assert "- **m220**: no learned or plug-in entry ran" in proc.stdout
     assert proc.stdout.rstrip().splitlines()[-2].endswith(str(tmp_path / "index.html"))
     rows = list(csv.DictReader((tmp_path / "leaderboard.csv").read_text().splitlines()))
-    # the two limits come with every run: Ideal/Oracle, and TrackingLimit where a reference is tracked
-    assert {r["controller"] for r in rows} == {"Zero", "Ideal", "Oracle", "TrackingLimit", "PD", "PID"}
+    # the limits come with every run: Ideal, Oracle and the friction-free optimum, and TrackingLimit
+    # where a reference is tracked
+    assert {r["controller"] for r in rows} == {
+        "Zero", "Ideal", "Oracle", "Optimum", "TrackingLimit", "PD", "PID"}  # fmt: skip
     episodes = list(csv.DictReader((tmp_path / "episodes.csv").read_text().splitlines()))
     assert {(r["controller"], r["scenario"]) for r in episodes} >= {
         ("PD", "kang_regulation_20deg"),

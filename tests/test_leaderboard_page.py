@@ -68,7 +68,7 @@ def test_the_page_is_self_contained_with_sortable_tables_and_marked_references(b
     assert all(t["class"] == "sortable" for t in page.tables)
     assert "<h3 id='kang_ramp'>kang_ramp</h3>" in text and "<h3 id='m220_regulation'>" in text
     scenario_rows = [r for t in page.tables[-2:] for r in t["rows"]]
-    assert scenario_rows.count("ref") == 7
+    assert scenario_rows.count("ref") == 9  # Zero, Ideal, Oracle, Optimum on both; TrackingLimit on the ramp
     assert "<p class='provenance'>frictiongym: " in text and "; commit: " in text
     # the answer first, and every metric with its unit
     assert text.index("<h2 id='answer'>The answer</h2>") < text.index("<h2 id='question'>")
