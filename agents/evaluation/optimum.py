@@ -44,7 +44,7 @@ from frictiongym.envs.suites import Episode
 METRICS = ("iae", "final_error", "reversal_peak_error")  # the main metrics the program writes
 HANKEL = 60  # rows and columns of the Hankel matrix the realisation is taken from
 RANK_TOL = 1e-10  # singular values below this fraction of the largest are rounding (the order is cut there)
-METHODS = ("highs-ds", "highs-ipm")  # HiGHS's dual simplex, then its interior point method
+METHODS = ("highs-ipm", "highs-ds")  # HiGHS's interior point method, then its dual simplex
 ROUNDS = 3  # programs solved, each on the error the last one's commands leave through g itself
 AGREE = 1e-6  # the program's objective and the played metric agree to this fraction of the error scale
 
@@ -205,7 +205,7 @@ def solve(d: np.ndarray, g: np.ndarray, w: np.ndarray, peak: bool) -> tuple[np.n
     target = d
     for _ in range(ROUNDS):
         b_ub = np.concatenate([target[rows], -target[rows]]) / scale
-        for method in METHODS:  # the dual simplex fails on some programs the interior point solves
+        for method in METHODS:  # the interior point fails on some programs the simplex solves, and back
             res = linprog(**program, b_ub=b_ub, method=method)
             if res.status == 0:
                 break
