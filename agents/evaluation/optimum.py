@@ -50,14 +50,15 @@ AGREE = 1e-6  # the program's objective and the played metric agree to this frac
 
 
 class Commands(Controller):
-    """Plays a fixed sequence of actions (one per control period, in [-1, 1]) on the friction-free twin,
-    whatever it observes: how the optimum's commands and its pulse responses are run through the one
-    evaluation loop."""
+    """Plays fixed actions (in [-1, 1], one per control period: (N,) for one episode, (n, N) for each of
+    the n episodes of a lockstep) on the friction-free twin, whatever it observes: how the optimum's
+    commands and its pulse responses are run through the one evaluation loop."""
 
     name: ClassVar[str] = "Commands"
+    steps_arrays: ClassVar[bool] = True
 
     def __init__(self, actions: np.ndarray):
-        self.actions = np.asarray(actions, dtype=np.float64)
+        self.actions = np.atleast_2d(np.asarray(actions, dtype=np.float64))
         self.k = 0
 
     def scenario_overrides(self) -> dict:
@@ -67,9 +68,12 @@ class Commands(Controller):
         self.k = 0
 
     def act(self, obs: np.ndarray) -> np.ndarray:
-        a = self.actions[self.k] if self.k < len(self.actions) else 0.0
+        return self.act_episodes(obs[None])[0]
+
+    def act_episodes(self, obs: np.ndarray) -> np.ndarray:
+        k = min(self.k, self.actions.shape[1] - 1)
         self.k += 1
-        return np.array([a])
+        return self.actions[:, k : k + 1]
 
 
 @dataclass(frozen=True)
@@ -160,14 +164,20 @@ def deadbeat(A: np.ndarray, B: np.ndarray, C: np.ndarray, d: np.ndarray, lag: in
     return u
 
 
-def solve(d: np.ndarray, g: np.ndarray, w: np.ndarray, peak: bool) -> tuple[np.ndarray, float, float]:
+def solve(
+    d: np.ndarray,
+    g: np.ndarray,
+    w: np.ndarray,
+    peak: bool,
+    model: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> tuple[np.ndarray, float, float]:
     """The actions u (N,) in [-1, 1] minimising the metric of d - g*u (`cost`), the program's minimum and
     the metric of u's error through g itself, in d's unit; d = r - y0, the error with no command. Where
     the deadbeat commands (the output on d from the first sample a command reaches) stay within the
     limit, they are the optimum, and no program is solved. Otherwise the program runs on the realisation
     of g; where it and g differ on u by more than AGREE of the error scale, it is solved again with d
-    moved by that difference (at most ROUNDS times)."""
-    A, B, C = realisation(g)
+    moved by that difference (at most ROUNDS times). `model`: g's realisation, if already taken."""
+    A, B, C = model if model is not None else realisation(g)
     n, N = len(B), len(d)
     scale = max(float(np.max(np.abs(d))), np.finfo(float).tiny)  # the program in O(1) numbers
     tol = AGREE * scale * (1.0 if peak else float(np.sum(w)))
@@ -242,7 +252,8 @@ def optimum(episode: Episode, envs: EnvCache | None = None) -> EpisodeOptimum:
     r, t = free.log["reference"][1:], free.log["t"][1:]
     g = play(np.eye(1, N)[0])[0] - y0
     w, peak = weights(sc.main_metric, t, r, sc.control_period)
-    u, objective, through_g = solve(r - y0, g, w, peak)
+    model = realisation(g)
+    u, objective, through_g = solve(r - y0, g, w, peak, model)
     value = play(u)[1].metrics[sc.main_metric]
     tol = AGREE * float(np.max(np.abs(r - y0))) * (1.0 if peak else float(np.sum(w)))
     if abs(value - through_g) > tol:  # the twin is not its pulse response's convolution: not LTI
@@ -255,32 +266,27 @@ def optimum(episode: Episode, envs: EnvCache | None = None) -> EpisodeOptimum:
         objective,
         abs(value - objective) <= tol,
         u,
-        len(realisation(g)[1]),
+        len(model[1]),
         time.perf_counter() - start,
     )
 
 
-class Optimum(Controller):
+class Optimum(Commands):
     """The friction-free optimum as a reference row: on each episode, the optimal commands (`optimum`)
     played on its friction-free twin, every episode of a lockstep at once. Computed before the episodes
     start (Controller.plan), once per episode and process; never an entry."""
 
     name: ClassVar[str] = "Optimum"
-    steps_arrays: ClassVar[bool] = True
     plans: ClassVar[bool] = True
 
     def __init__(self) -> None:
+        super().__init__(np.zeros((0, 1)))
         self.envs = EnvCache()
         self.solved: dict[Episode, EpisodeOptimum] = {}
-        self.actions = np.zeros((0, 0))
         self.exact = True
-        self.k = 0
 
     def why_not(self, scenario: Scenario) -> str | None:
         return why_not(scenario) or super().why_not(scenario)
-
-    def scenario_overrides(self) -> dict:
-        return {"nonlinear_friction": False}
 
     def plan(self, episodes: Sequence[Episode]) -> None:
         for e in episodes:
@@ -289,17 +295,6 @@ class Optimum(Controller):
         found = [self.solved[e] for e in episodes]
         self.actions = np.stack([o.actions for o in found])
         self.exact = all(o.exact for o in found)
-
-    def reset(self, ctx: EpisodeContext) -> None:
-        self.k = 0
-
-    def act(self, obs: np.ndarray) -> np.ndarray:
-        return self.act_episodes(obs[None])[0]
-
-    def act_episodes(self, obs: np.ndarray) -> np.ndarray:
-        k = min(self.k, self.actions.shape[1] - 1)
-        self.k += 1
-        return self.actions[:, k : k + 1]
 
     def params(self) -> dict:
         return {"exact": self.exact}
