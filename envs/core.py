@@ -508,6 +508,7 @@ class ServoCore:
             g["velocity"],
             settle_band=self.sc.settle_band,
             stick_velocity=self.stick_velocity,
+            command_limit=self.sc.action_scale,
             lc_min_amp=self.lc_min_amp,
             reversal_half_window=reversal_half_window(self.sc.control_period),
         )

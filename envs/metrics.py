@@ -23,6 +23,9 @@ METRIC_NAMES = (
     "reversal_peak_error",
     "effort_rms",
     "effort_total_variation",
+    "command_roughness",
+    "saturated_share",
+    "rest_oscillation",
 )
 
 
@@ -42,6 +45,9 @@ def metric_unit(name: str, output_unit: str, command_unit: str) -> str:
         "reversal_peak_error": output_unit,
         "effort_rms": f"{command_unit} rms",
         "effort_total_variation": command_unit,
+        "command_roughness": f"{command_unit} rms",
+        "saturated_share": "fraction",
+        "rest_oscillation": output_unit,
     }[name]
 
 
@@ -159,6 +165,39 @@ def effort(u: np.ndarray) -> dict[str, float]:
     }
 
 
+def command_roughness(u: np.ndarray) -> float:
+    """Chatter as the command's high-frequency activity: the rms of its change from one control period to
+    the next (command units); 0 for a constant command."""
+    return float(np.sqrt(np.mean(np.diff(u) ** 2))) if len(u) > 1 else 0.0
+
+
+def saturated_share(u: np.ndarray, limit: float) -> float:
+    """The share of control periods whose command is at the actuator's limit (|u| within 1e-9 of it)."""
+    return float(np.mean(np.abs(u) >= limit * (1 - 1e-9))) if len(u) else float("nan")
+
+
+REST_MIN_SAMPLES = 20  # a rest's second half must hold at least this many samples to be judged
+
+
+def rest_oscillation(r: np.ndarray, e: np.ndarray, min_amp: float) -> float:
+    """A limit cycle measured as a sustained oscillation where the reference rests: over the second half
+    of each rest (`holds`, after the move's transient), the error's half peak-to-peak when it crosses its
+    own mean at least three times (one and a half periods) and exceeds min_amp (the sensor's resolution),
+    else 0; the largest over the rests. A constant offset (a drive stuck short of its target) is not an
+    oscillation and counts 0. nan where the reference never rests long enough (a tracking task: its
+    error's size is the main metric's business, not a limit cycle's). The unit of e and min_amp."""
+    worst = math.nan
+    for i, j in holds(r):
+        w = e[(i + j) // 2 : j]
+        if len(w) < REST_MIN_SAMPLES:
+            continue
+        amp = 0.5 * float(np.max(w) - np.min(w))
+        s = np.signbit(w - np.mean(w))
+        cycling = amp > min_amp and np.count_nonzero(s[1:] != s[:-1]) >= 3
+        worst = max(amp if cycling else 0.0, 0.0 if math.isnan(worst) else worst)
+    return worst
+
+
 def from_first_period(log: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     """The samples of an episode log the metrics use: from the first control period on (the log's first
     sample is the reset state, before any command was applied)."""
@@ -181,10 +220,11 @@ def episode_metrics(
     *,
     settle_band: float,
     stick_velocity: float,
+    command_limit: float = math.inf,
     lc_min_amp: float = 0.0,
     reversal_half_window: float = 0.25,
 ) -> dict[str, float]:
-    """All metrics of one episode (see METRIC_NAMES)."""
+    """All metrics of one episode (see METRIC_NAMES); command_limit is the actuator's |u| limit."""
     e = y - r
     out = integral_errors(t, e)
     out["final_error"] = final_error(e)
@@ -194,4 +234,7 @@ def episode_metrics(
     out["stick_slip_events"] = float(stick_slip_events(v, stick_velocity))
     out["reversal_peak_error"] = reversal_peak_error(t, r, e, reversal_half_window)
     out.update(effort(u))
+    out["command_roughness"] = command_roughness(u)
+    out["saturated_share"] = saturated_share(u, command_limit)
+    out["rest_oscillation"] = rest_oscillation(r, e, lc_min_amp)
     return out

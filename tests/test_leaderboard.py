@@ -133,35 +133,53 @@ def test_every_classical_baseline_beats_zero_and_the_limits_bound_the_loop(suite
         assert best("kang_regulation_coarse") < best("kang_regulation") - 0.2
 
 
-def test_verdict_requires_a_paired_win_bounded_effort_and_no_new_limit_cycle():
-    """A learned controller beats the baseline only with a paired interval below 0, effort_rms at most
-    1.2x and limit_cycle_amp at most 1.2x the baseline's plus the settling band; each failure is named."""
+def conduct_metrics(rough: float = 0.1, sat: float = 0.0, cycle: float = 0.0) -> dict:
+    """A summarized row's metric means as the rule reads them (mean, lo, hi)."""
+    return {
+        "command_roughness": (rough,) * 3,
+        "saturated_share": (sat,) * 3,
+        "rest_oscillation": (cycle,) * 3,
+    }
+
+
+def test_verdict_requires_a_paired_win_and_a_result_by_the_one_rule():
+    """A learned controller beats the baseline only with a paired interval below 0 and by the rule every
+    row meets against the scenario's reference point (the larger of the uncompensated loop's and the
+    friction-free design's): command roughness at most 3x the point's plus 1 % of the command's range (10 V
+    on Kang's robot: 0.1 V), saturated share at most 1.5x the point's plus 2 %, the oscillation at rest
+    at most 1.2x the point's plus the settling band; each failure is named. The effort it spends is not
+    judged: tracking itself may need it."""
     from frictiongym.envs.scenario import load_scenario
 
     sc = load_scenario("kang_regulation")
+    band = sc.settle_band
 
-    def row(name, effort, lc, vs=None):
-        m = {k: (0.0, 0.0, 0.0) for k in ("effort_rms", "limit_cycle_amp")}
-        m["effort_rms"], m["limit_cycle_amp"] = (effort,) * 3, (lc,) * 3
-        return {"controller": name, "baseline": "RDFC", "metrics": m, "vs_baseline": vs}
+    def row(name, vs=None, unc=False, **kw):
+        return {"controller": name, "baseline": "RDFC", "metrics": conduct_metrics(**kw), "vs_baseline": vs,
+                "uncompensated": unc}  # fmt: skip
 
     win = {"diff": -1e-4, "diff_lo": -2e-4, "diff_hi": -5e-5, "p_improve": 0.9}
     tie = {"diff": -1e-4, "diff_lo": -2e-4, "diff_hi": 1e-5, "p_improve": 0.6}
     table = {
         "kang_regulation": [
-            row("RDFC", 1.0, 0.001),
-            row("good", 1.19, 0.001, win),
-            row("chatter", 1.5, 0.001, win),
-            row("cycle", 1.0, 0.01, win),
-            row("unsure", 1.0, 0.001, tie),
-            row("PID", 1.0, 0.001, tie),  # a built-in: not judged
+            row("RDFC"),
+            row("PD", unc=True, rough=0.05),
+            row("Ideal", rough=0.2),  # the point: roughness 0.2 V, no saturation, no oscillation at rest
+            row("good", win, rough=0.69, sat=0.019, cycle=0.99 * band),
+            row("chatter", win, rough=0.71),
+            row("saturated", win, sat=0.03),
+            row("cycle", win, cycle=1.01 * band),
+            row("unsure", tie),
+            row("PID", tie),  # a built-in: not judged
         ]
     }
     got = {v["controller"]: v for v in leaderboard.verdicts(table, {"kang_regulation": sc})}
-    assert set(got) == {"good", "chatter", "cycle", "unsure"}
-    assert got["good"]["beats_baseline"] and not got["chatter"]["beats_baseline"]
-    assert got["chatter"]["why_not"] == "effort 1.50x"
-    assert got["cycle"]["why_not"].startswith("limit cycle") and "exclude 0" in got["unsure"]["why_not"]
+    assert set(got) == {"good", "chatter", "saturated", "cycle", "unsure"}
+    assert got["good"]["beats_baseline"], got["good"]["why_not"]
+    assert got["chatter"]["why_not"].startswith("chatters (0.71 vs 0.2")
+    assert got["saturated"]["why_not"].startswith("saturates (3 % vs 0 %")
+    assert got["cycle"]["why_not"].startswith("limit cycle at rest")
+    assert "exclude 0" in got["unsure"]["why_not"]
 
 
 def test_the_answer_shows_learned_entries_and_plug_ins_in_their_own_columns():
@@ -174,12 +192,12 @@ def test_the_answer_shows_learned_entries_and_plug_ins_in_their_own_columns():
     sc = load_scenario("kang_regulation")
 
     def row(name, main, vs=None):
-        m = {k: (1.0, 1.0, 1.0) for k in ("effort_rms", "limit_cycle_amp")}
-        return {"controller": name, "baseline": "DOB", "main": (main,) * 3, "metrics": m, "vs_baseline": vs}
+        return {"controller": name, "baseline": "DOB", "main": (main,) * 3, "metrics": conduct_metrics(),
+                "vs_baseline": vs, "uncompensated": name == "PD"}  # fmt: skip
 
     win = {"diff": -1e-4, "diff_lo": -2e-4, "diff_hi": -5e-5, "p_improve": 0.9}
     worse = {"diff": 1e-4, "diff_lo": 5e-5, "diff_hi": 2e-4, "p_improve": 0.0}
-    rows = [row("NaiveFF", 1e-4, win), row("DOB", 2e-4), row("ResSAC-s0", 3e-4, worse)]
+    rows = [row("NaiveFF", 1e-4, win), row("DOB", 2e-4), row("ResSAC-s0", 3e-4, worse), row("PD", 1e-3)]
     table = {"kang_regulation": [*rows, row("ResSAC-s1", 4e-4, worse)]}
     scenarios = {"kang_regulation": sc}
     about = {"ResSAC-s0": "SAC residual", "ResSAC-s1": "SAC residual"}
@@ -204,9 +222,10 @@ def test_a_row_equal_to_its_baseline_is_a_tie_and_a_row_above_it_is_worse():
     reaches 0 (a row equal to its baseline on every episode gives [0, 0], e.g. a gated residual at a
     set-point, which is its base) does not exclude 0."""
     paired = {"diff": 0.0, "diff_lo": 0.0, "diff_hi": 0.0, "p_improve": 0.0}
-    assert stats.why_not_beats(paired, 1.0, 0.0, 0.0, 0.0) == ["difference interval does not exclude 0"]
+    calm = stats.Conduct(0.0, 0.0, 0.0)
+    assert stats.why_not_beats(paired, calm, calm, 1.0, 0.0) == ["difference interval does not exclude 0"]
     above = {"diff": 1e-4, "diff_lo": 5e-5, "diff_hi": 2e-4, "p_improve": 0.0}
-    assert stats.why_not_beats(above, 1.0, 0.0, 0.0, 0.0) == ["worse"]
+    assert stats.why_not_beats(above, calm, calm, 1.0, 0.0) == ["worse"]
 
 
 @pytest.mark.slow  # a leaderboard and its figures

@@ -65,6 +65,30 @@ def test_limit_cycle_amplitude_and_frequency():
     assert metrics.limit_cycle(t, 1e-6 * y, min_amp=1e-3)["limit_cycle_freq_hz"] == 0.0
 
 
+def test_command_roughness_and_saturation_read_the_command_alone():
+    """Chatter is the command's change per period: a command switching ±1 every period has roughness 2
+    (|Δu| = 2 each period), a constant or slow one ~0; the saturated share counts periods at the limit."""
+    switching = np.array([1.0, -1.0] * 50)
+    assert metrics.command_roughness(switching) == pytest.approx(2.0)
+    assert metrics.command_roughness(np.full(100, 0.7)) == 0.0
+    assert metrics.command_roughness(np.linspace(0, 1, 101)) == pytest.approx(0.01)
+    u = np.array([2.0, -2.0, 1.999, 0.0])
+    assert metrics.saturated_share(u, 2.0) == pytest.approx(0.5)
+
+
+def test_an_oscillation_at_rest_is_a_limit_cycle_and_an_offset_or_a_tracking_error_is_not():
+    """Where the reference rests, the error's sustained oscillation over the second half of the rest
+    counts (half its peak-to-peak); a constant offset (stuck short of the target) counts 0; a reference
+    that never rests has no rest to judge (nan) however large its tracking error."""
+    t = np.arange(2000) * 0.005
+    r = np.where(t < 1.0, t, 1.0)  # a ramp, then a rest of 9 s
+    hunting = np.where(t > 2.0, 0.01 * np.sin(2 * np.pi * 0.5 * t), 0.0)
+    assert metrics.rest_oscillation(r, hunting, 1e-4) == pytest.approx(0.01, rel=1e-3)
+    assert metrics.rest_oscillation(r, np.full_like(t, -0.02), 1e-4) == 0.0
+    assert metrics.rest_oscillation(r, hunting, 0.02) == 0.0  # below the sensor's resolution
+    assert np.isnan(metrics.rest_oscillation(np.sin(t), 0.3 * np.sin(40 * t), 1e-4))
+
+
 def test_stick_slip_events_and_reversals():
     v = np.array([0, 0, 1, 1, 0, 0, 2, 0, -1, -1, 0])
     assert metrics.stick_slip_events(v, 0.5) == 3

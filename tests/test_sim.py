@@ -5,13 +5,16 @@ import numpy as np
 import pytest
 from mujoco.batch import Batch
 
+from frictiongym.envs.config import ConfigError
 from frictiongym.envs.plants.params import EpisodeParams, apply_batch
 from frictiongym.envs.plants.sim import PlantSim
 from frictiongym.envs.servo_env import ServoEnv
 
 
-@pytest.mark.parametrize("delay_steps", [0, 1, 7, 40])
+@pytest.mark.parametrize("delay_steps", [0, 1, 7, 40, 79, 80])
 def test_command_acts_from_exactly_tk_plus_tau(delay_steps):
+    """Up to two control periods of 40 steps (MAX_DELAY_PERIODS: the plant's own delay and the one more
+    period a robustness check adds), the command acts exactly the delay after it was given."""
     sim = PlantSim("kang_robot")
     h = sim.spec.timestep
     p = EpisodeParams.nominal(sim.spec)
@@ -20,12 +23,20 @@ def test_command_acts_from_exactly_tk_plus_tau(delay_steps):
     t_k = sim.data.time
     sim.data.ctrl[sim.idx.drive_ctrl] = 1.0
     first = None
-    for _ in range(2 * sim.spec.substeps):
+    for _ in range(3 * sim.spec.substeps):
         t_start = sim.data.time
         mujoco.mj_step(sim.model, sim.data)
         if first is None and sim.data.actuator_force[sim.idx.drive] != 0.0:
             first = t_start
     assert first == pytest.approx(t_k + delay_steps * h, abs=1e-12)
+
+
+def test_a_delay_beyond_two_control_periods_is_refused_naming_the_field():
+    spec = PlantSim("kang_robot").spec
+    p = EpisodeParams.nominal(spec)
+    EpisodeParams(**{**p.__dict__, "delay": 2 * spec.control_period}).validate(spec)
+    with pytest.raises(ConfigError, match="params.delay"):
+        EpisodeParams(**{**p.__dict__, "delay": 2 * spec.control_period + spec.timestep}).validate(spec)
 
 
 def test_the_delay_stays_the_same_over_a_long_episode():

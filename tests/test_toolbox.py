@@ -207,20 +207,25 @@ def test_tracking_limit_is_below_the_ideal_loop_on_a_ramp():
     assert "Ideal" in registry.make("TrackingLimit").why_not(load_scenario("kang_regulation"))
 
 
-def result(name: str, seed: int, main: float, effort: float) -> EpisodeResult:
+def result(name: str, seed: int, main: float, roughness: float, effort: float = 1.0) -> EpisodeResult:
     metrics = dict.fromkeys(METRIC_NAMES, 0.0)
-    metrics.update(iae=main, effort_rms=effort)
+    metrics.update(iae=main, command_roughness=roughness, effort_rms=effort)
     return EpisodeResult(name, "kang_ramp", seed, metrics, 0.0, False)
 
 
-def test_a_classical_row_that_chatters_is_never_the_baseline():
+def test_a_row_that_chatters_is_never_the_baseline_and_effort_alone_is_not_chatter():
+    """The rule reads the command's change per period against the reference point (PD, the loop, and
+    TrackingLimit here: 0.05 V): DOB at 0.5 V > 3 x 0.05 + 0.1 V chatters and cannot be the baseline;
+    PID+FF, at twice the loop's effort but a smooth command, is a result."""
     sc = {"kang_ramp": load_scenario("kang_ramp")}
-    rows = [result("PD", s, 1.0, 1.0) for s in range(5)]
-    rows += [result("DOB", s, 0.1, 2.0) for s in range(5)]  # far better, at twice the effort
-    rows += [result("PID+FF", s, 0.5, 1.1) for s in range(5)]
+    rows = [result("PD", s, 1.0, 0.02) for s in range(5)]
+    rows += [result("TrackingLimit", s, 0.01, 0.05) for s in range(5)]
+    rows += [result("DOB", s, 0.1, 0.5) for s in range(5)]  # far better, with a chattering command
+    rows += [result("PID+FF", s, 0.5, 0.2, effort=2.0) for s in range(5)]
     table = leaderboard.summarize(rows, sc)["kang_ramp"]
     by = {r["controller"]: r for r in table}
-    assert by["DOB"]["chatters"] == "effort 2.00x"
+    assert by["DOB"]["chatters"].startswith("chatters (0.5 vs 0.05")
+    assert by["PID+FF"]["chatters"] == ""
     assert by["PID+FF"]["baseline"] == "PID+FF" and by["DOB"]["baseline"] == "PID+FF"
 
 

@@ -33,7 +33,7 @@ from frictiongym.agents.evaluation import engine, report, stats
 from frictiongym.agents.evaluation.board import Board
 from frictiongym.agents.evaluation.evaluate import EnvCache, EpisodeResult, run_episode, run_episodes
 from frictiongym.agents.evaluation.page import page
-from frictiongym.agents.evaluation.stats import MAX_EFFORT_RATIO, why_not_beats
+from frictiongym.agents.evaluation.stats import why_not_beats
 from frictiongym.agents.figures import save_figure, smallest_text_px
 from frictiongym.envs.metrics import METRIC_NAMES
 from frictiongym.envs.records import atomic_text, command_line, csv_text, git_commit, package_version
@@ -54,19 +54,29 @@ def entry(name: str) -> bool:
     return name not in REFERENCES
 
 
-def chatters(row: dict, unc: dict | None, band: float) -> str:
-    """Why a classical row is not a result on its scenario ("" if it is one): like any compensator, it
-    may spend at most MAX_EFFORT_RATIO times the uncompensated loop's effort_rms and add no limit cycle
-    (limit_cycle_amp at most 1.2x the loop's plus the settling band), the rule learned entries meet
-    against the best classical row (stats.why_not_beats). Only such a row can be the scenario's baseline."""
-    if unc is None or row is unc:
+def conduct(row: dict) -> stats.Conduct:
+    """What the rule reads of a summarized row (its metric means)."""
+    return stats.Conduct.of({m: ci[0] for m, ci in row["metrics"].items()})
+
+
+def point_of(rows: list[dict]) -> stats.Conduct | None:
+    """A scenario's reference point (stats.reference_point) from its summarized rows: the uncompensated
+    loop and TrackingLimit (Ideal where TrackingLimit does not apply); None without the loop."""
+    by = {r["controller"]: r for r in rows}
+    loop = next((r for r in rows if r["uncompensated"]), None)
+    if loop is None:
+        return None
+    limit = by.get("TrackingLimit") or by.get("Ideal")
+    return stats.reference_point(conduct(loop), conduct(limit) if limit is not None else None)
+
+
+def chatters(row: dict, point: stats.Conduct | None, scenario: Scenario) -> str:
+    """Why a row is not a result on its scenario ("" if it is one, or without a reference point): the
+    one rule (stats.why_not_result) every row meets, classical and learned. Only a classical row that is
+    a result can be the scenario's baseline."""
+    if point is None or row["uncompensated"]:
         return ""
-    m, mu = row["metrics"], unc["metrics"]
-    effort = m["effort_rms"][0] / mu["effort_rms"][0] if mu["effort_rms"][0] > 0 else math.inf
-    why = why_not_beats(
-        {"diff_lo": -1.0, "diff_hi": -1.0}, effort, m["limit_cycle_amp"][0], mu["limit_cycle_amp"][0], band
-    )
-    return "; ".join(why)
+    return "; ".join(stats.why_not_result(conduct(row), point, scenario.action_scale, scenario.settle_band))
 
 
 def per_seed(rs: list[EpisodeResult], metric: str) -> dict[int, float]:
@@ -100,9 +110,9 @@ def summarize(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> d
                 }
             )
         rows.sort(key=lambda r: r["main"][0] if math.isfinite(r["main"][0]) else math.inf)
-        unc = next((r for r in rows if r["uncompensated"]), None)
+        point = point_of(rows)
         for r in rows:
-            r["chatters"] = chatters(r, unc, scenarios[sc].settle_band) if classical(r["controller"]) else ""
+            r["chatters"] = chatters(r, point, scenarios[sc]) if entry(r["controller"]) else ""
         best = next((r["controller"] for r in rows if classical(r["controller"]) and not r["chatters"]), None)
         for r in rows:
             r["baseline"] = best
@@ -131,35 +141,33 @@ def penalty(results: list[EpisodeResult], scenario: Scenario) -> float:
 
 def verdicts(table: dict[str, list[dict]], scenarios: dict[str, Scenario]) -> list[dict]:
     """For each controller that is not a built-in (plug-ins, trained models) on each scenario: does it beat
-    the scenario's best classical baseline? It must (1) lower the main metric with a paired 95 % interval
-    of the per-episode difference below 0, (2) spend at most MAX_EFFORT_RATIO times the baseline's
-    effort_rms, and (3) add no limit cycle: its limit_cycle_amp at most 1.2x the baseline's plus the
-    scenario's settling band. A compensator that fails (2) or (3) chatters: it is not a result."""
+    the scenario's best classical baseline? It must lower the main metric with a paired 95 % interval of
+    the per-episode difference below 0 and be a result by the rule every row meets (no chatter, saturation
+    or limit cycle at rest beyond the scenario's reference point: stats.why_not_beats)."""
     out = []
     for sc, rows in table.items():
         base = next((r for r in rows if r["controller"] == r["baseline"]), None)
-        if base is None:
+        point = point_of(rows)
+        if base is None or point is None:
             continue
-        band = scenarios[sc].settle_band
+        s = scenarios[sc]
         for r in rows:
             if not entry(r["controller"]) or r["controller"] in registry.BUILTIN or r["vs_baseline"] is None:
                 continue
             v = r["vs_baseline"]
-            effort = r["metrics"]["effort_rms"][0] / base["metrics"]["effort_rms"][0]
-            lc, lc_base = r["metrics"]["limit_cycle_amp"][0], base["metrics"]["limit_cycle_amp"][0]
-            why = why_not_beats(v, effort, lc, lc_base, band)
+            why = why_not_beats(v, conduct(r), point, s.action_scale, s.settle_band)
             out.append(
                 {
                     "scenario": sc,
                     "controller": r["controller"],
                     "baseline": base["controller"],
                     "vs_baseline": v,
-                    "effort_ratio": effort,
-                    "limit_cycle_amp": lc,
-                    "baseline_limit_cycle_amp": lc_base,
+                    "roughness": r["metrics"]["command_roughness"][0],
+                    "saturated": r["metrics"]["saturated_share"][0],
+                    "rest_cycle": r["metrics"]["rest_oscillation"][0],
+                    "point": point,
                     "beats_baseline": not why,
                     "why_not": "; ".join(why),
-                    "max_effort_ratio": MAX_EFFORT_RATIO,
                 }
             )
     return out

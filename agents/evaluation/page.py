@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 from frictiongym.agents.evaluation.report import (
     ANSWER_HEAD,
     G_MEANING,
-    MAX_EFFORT_RATIO,
+    RULE,
     answer_rows,
     headline,
 )
@@ -123,14 +123,16 @@ def _verdicts(board: Board) -> list[str]:
         rows.append(
             f"<tr><td>{_e(_with_unit(board, j['scenario']))}</td>{_named(board, j['controller'])}"
             f"<td>{_e(j['baseline'])}</td>{_ci((v['diff'], v['diff_lo'], v['diff_hi']))}"
-            f"<td data-v='{_num(j['effort_ratio'])}'>{j['effort_ratio']:.2f}</td>{verdict}</tr>"
+            f"<td data-v='{_num(j['roughness'])}'>{j['roughness']:.3g} ({j['point'].roughness:.3g})</td>"
+            f"<td data-v='{_num(j['saturated'])}'>{j['saturated']:.3g} ({j['point'].saturated:.3g})</td>"
+            f"{verdict}</tr>"
         )
     head = ["scenario (main metric, unit)", "entry", "baseline", "difference of the main metric (its unit)",
-            "effort ratio (x the baseline's)", "beats it"]  # fmt: skip
+            "rms change per period (the point's)", "saturated share (the point's)", "beats it"]  # fmt: skip
     return [
         "<h2 id='verdicts'>Learned and plug-in entries against the best classical baseline</h2>",
-        f"<p>Beats it: the paired 95 % interval of the per-episode difference below 0, at most "
-        f"{MAX_EFFORT_RATIO}x the baseline's effort and no new limit cycle.</p>",
+        "<p>Beats it: the paired 95 % interval of the per-episode difference below 0, and a result: "
+        f"{_e(RULE)}</p>",
         _table(head, rows),
     ]
 

@@ -17,7 +17,6 @@ import numpy as np
 from frictiongym.agents import registry
 from frictiongym.agents.base import ZERO
 from frictiongym.agents.evaluation import stats
-from frictiongym.agents.evaluation.stats import MAX_EFFORT_RATIO
 from frictiongym.envs.metrics import METRIC_NAMES
 from frictiongym.envs.records import pyplot
 from frictiongym.envs.scenario import Scenario
@@ -26,6 +25,16 @@ if TYPE_CHECKING:
     from frictiongym.agents.evaluation.board import Board
 
 REFERENCES = registry.REFERENCES  # Zero, Ideal, Oracle: drawn as references, never ranked
+RULE = (
+    "A row is a result when, against its scenario's reference point (the larger of the uncompensated "
+    "loop's and the friction-free linear design's on the same episodes: TrackingLimit, Ideal at a "
+    f"set-point), it does not chatter (the command's rms change per control period at most "
+    f"{stats.CHATTER_RATIO:g}x the point's plus {100 * stats.CHATTER_FLOOR:g} % of the command's range), "
+    f"saturate (saturated periods at most {stats.SATURATION_RATIO:g}x the point's share plus "
+    f"{100 * stats.SATURATION_FLOOR:g} %) or add a limit cycle (the error's sustained oscillation where "
+    f"the reference rests at most {stats.CYCLE_RATIO:g}x the point's plus the settling band); the same "
+    "rule for classical and learned rows."
+)
 
 
 def _fmt(ci: tuple[float, float, float]) -> str:
@@ -115,9 +124,10 @@ def markdown(board: Board) -> str:
         "",
         "`vs baseline`: the mean per-episode difference of the main metric against the scenario's best",
         "classical baseline (negative = better), its 95 % interval, and the probability that the controller",
-        "beats the baseline on an episode. The baseline is the best classical row that is a result: one",
-        f"spending more than {MAX_EFFORT_RATIO}x the uncompensated loop's effort_rms or adding a limit cycle",
-        "chatters (marked so) and is not one.",
+        "beats the baseline on an episode. The baseline is the best classical row that is a result; a row",
+        "that is not one is marked with why.",
+        "",
+        RULE,
         "",
         "## Per plant",
         "",
@@ -133,20 +143,20 @@ def markdown(board: Board) -> str:
             "## Learned and plug-in controllers against the best classical baseline",
             "",
             "Beats the baseline = lower main metric with the paired 95 % interval of the per-episode "
-            f"difference below 0, effort_rms at most {judged[0]['max_effort_ratio']}x the baseline's, and no "
-            "new "
-            "limit cycle (limit_cycle_amp at most 1.2x the baseline's plus the settling band).",
+            "difference below 0, and a result by the rule above. Beside each entry, what the rule reads "
+            "(the reference point's in brackets).",
             "",
-            "| scenario | controller | baseline | difference of the main metric | effort ratio | limit cycle "
-            "(vs baseline) | beats the baseline |",
-            "|---|---|---|---|---|---|---|",
+            "| scenario | controller | baseline | difference of the main metric | rms change per period | "
+            "saturated share | oscillation at rest | beats the baseline |",
+            "|---|---|---|---|---|---|---|---|",
         ]
         for j in judged:
-            v = j["vs_baseline"]
+            v, p = j["vs_baseline"], j["point"]
             lines.append(
                 f"| {j['scenario']} | {j['controller']} | {j['baseline']} | "
-                f"{_fmt((v['diff'], v['diff_lo'], v['diff_hi']))} | {j['effort_ratio']:.2f} | "
-                f"{j['limit_cycle_amp']:.3g} ({j['baseline_limit_cycle_amp']:.3g}) | "
+                f"{_fmt((v['diff'], v['diff_lo'], v['diff_hi']))} | "
+                f"{j['roughness']:.3g} ({p.roughness:.3g}) | "
+                f"{j['saturated']:.3g} ({p.saturated:.3g}) | {j['rest_cycle']:.3g} ({p.rest_cycle:.3g}) | "
                 + ("yes" if j["beats_baseline"] else f"no: {j['why_not']}")
                 + " |"
             )
@@ -276,16 +286,17 @@ def answer(board: Board) -> str:
     lines = [
         f"# The suite's question on `{board.suite}`",
         "",
-        "Per scenario: the best classical controller that is a result (no more than "
-        f"{MAX_EFFORT_RATIO}x the uncompensated loop's effort, no new limit cycle); the best learned entry "
-        "(a saved model) and the best plug-in (a user's controller), each the best of its kind that beats "
-        "the baseline, else the best, whether it beats the baseline (paired 95 % interval below 0, effort "
-        "and limit-cycle rule) and how many of its kind do; and the "
+        "Per scenario: the best classical controller that is a result (the rule below); the best learned "
+        "entry (a saved model) and the best plug-in (a user's controller), each the best of its kind that "
+        "beats the baseline, else the best, whether it beats the baseline (paired 95 % interval below 0, "
+        "and a result) and how many of its kind do; and the "
         "limits (Ideal: friction removed under the uncompensated loop; TrackingLimit: the friction-free "
         "twin under the linear two-degree-of-freedom loop, Ideal at a set-point; the friction-free optimum: "
         "the best commands within the actuator's limit on that twin knowing the whole reference, where no "
         "controller goes below it; n/a where the drive's jitter makes the twin vary in time). Mean [95 % "
         "interval] of the main metric, lower is better.",
+        "",
+        RULE,
         "",
         "## The answer",
         "",

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -190,26 +190,70 @@ def performance_profile(scores: Sequence[float], taus: np.ndarray) -> np.ndarray
     return (s[None, :] > np.asarray(taus)[:, None]).mean(axis=1)
 
 
-MAX_EFFORT_RATIO = 1.2  # a learned compensator may spend at most this times the baseline's effort_rms
+# The rule every row meets to be a result, classical and learned alike, against one reference point per
+# scenario (reference_point: what the uncompensated loop and the friction-free linear design do on the same
+# episodes). Chatter: the command's rms change per control period (metrics.command_roughness) at most
+# CHATTER_RATIO times the point's plus CHATTER_FLOOR of the command's range; saturation: the share of
+# saturated periods at most SATURATION_RATIO times the point's plus SATURATION_FLOOR; a limit cycle: the
+# error's sustained oscillation at rest (metrics.rest_oscillation) at most CYCLE_RATIO times the point's
+# plus the scenario's settling band.
+CHATTER_RATIO, CHATTER_FLOOR = 3.0, 0.01
+SATURATION_RATIO, SATURATION_FLOOR = 1.5, 0.02
+CYCLE_RATIO = 1.2
+
+
+@dataclass(frozen=True)
+class Conduct:
+    """What the rule reads of a row on a scenario, each a mean over its episodes: command_roughness
+    (command unit), saturated_share (fraction), rest_oscillation (output unit; nan: the reference never
+    rests)."""
+
+    roughness: float
+    saturated: float
+    rest_cycle: float
+
+    @classmethod
+    def of(cls, means: dict[str, float]) -> Conduct:
+        """From a row's metric means (or a results file's columns of the same names)."""
+        return cls(means["command_roughness"], means["saturated_share"], means["rest_oscillation"])
+
+
+def reference_point(loop: Conduct, limit: Conduct | None) -> Conduct:
+    """The point every row of a scenario is held to: the larger of the uncompensated loop's and the
+    friction-free linear design's (TrackingLimit, or Ideal at a set-point: what following the reference
+    itself needs) of each measure; the loop's alone without the design."""
+    if limit is None:
+        return loop
+
+    def larger(a: float, b: float) -> float:
+        return b if math.isnan(a) else a if math.isnan(b) else max(a, b)
+
+    return Conduct(*(larger(a, b) for a, b in zip(astuple(loop), astuple(limit), strict=True)))
+
+
+def why_not_result(row: Conduct, point: Conduct, scale: float, band: float) -> list[str]:
+    """Why a row is not a result on its scenario (empty: it is one): it chatters, saturates or adds a
+    limit cycle beyond the reference point (module constants); scale is the command's range (the
+    scenario's action scale, V or N·m), band the settling band (output unit)."""
+    why = []
+    if not row.roughness <= CHATTER_RATIO * point.roughness + CHATTER_FLOOR * scale:
+        why.append(f"chatters ({row.roughness:.3g} vs {point.roughness:.3g} rms change per period)")
+    if not row.saturated <= SATURATION_RATIO * point.saturated + SATURATION_FLOOR:
+        why.append(f"saturates ({100 * row.saturated:.3g} % vs {100 * point.saturated:.3g} % of periods)")
+    at_rest = 0.0 if math.isnan(point.rest_cycle) else point.rest_cycle
+    if not math.isnan(row.rest_cycle) and not row.rest_cycle <= CYCLE_RATIO * at_rest + band:
+        why.append(f"limit cycle at rest ({row.rest_cycle:.3g} vs {at_rest:.3g})")
+    return why
 
 
 def why_not_beats(
-    paired: dict[str, float],
-    effort_ratio: float,
-    lc: float,
-    lc_base: float,
-    band: float,
-    max_effort_ratio: float = MAX_EFFORT_RATIO,
+    paired: dict[str, float], row: Conduct, point: Conduct, scale: float, band: float
 ) -> list[str]:
-    """Why a candidate does not beat a baseline (empty: it beats it), the rule of `verdicts`: `paired` is
-    stats.paired(candidate, baseline) of the main metric, effort_ratio the ratio of mean effort_rms, lc
-    and lc_base the mean limit_cycle_amp, band the scenario's settling band. Validation selection on
-    several scenarios (agents/training/) applies the same rule; leaderboard.verdicts the rule."""
+    """Why a candidate does not beat a baseline (empty: it beats it): `paired` is stats.paired(candidate,
+    baseline) of the main metric, whose interval must lie below 0, and the candidate must be a result
+    (why_not_result against the scenario's reference point). The leaderboard's verdicts, tuning and
+    validation selection on several scenarios (agents/training/) apply this one rule."""
     why = []
     if not paired["diff_hi"] < 0:
         why.append("worse" if paired["diff_lo"] > 0 else "difference interval does not exclude 0")
-    if not effort_ratio <= max_effort_ratio:
-        why.append(f"effort {effort_ratio:.2f}x")
-    if not lc <= 1.2 * lc_base + band:
-        why.append(f"limit cycle {lc:.3g} vs {lc_base:.3g}")
-    return why
+    return why + why_not_result(row, point, scale, band)

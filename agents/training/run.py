@@ -48,6 +48,7 @@ from .validation import (
     evaluate_snapshot,
     gradient_steps,
     means,
+    reference_point,
     validation_episodes,
 )
 from .vec_env import SEEDS_PER_RUN, TRAINING_SEEDS
@@ -168,7 +169,7 @@ class TrainingRun:
             "main": m[self.main],
             "score": 1.0 - m[self.main] / zero if zero > 0 else math.nan,
             "effort_rms": m["effort_rms"],
-            "limit_cycle_amp": m["limit_cycle_amp"],
+            "command_roughness": m["command_roughness"],
             "iae": m["iae"],
         }
         row["admissible"] = float(row["effort_rms"] <= self.cfg.max_effort_ratio * self.effort_ref)
@@ -194,22 +195,16 @@ class TrainingRun:
 
     def _across(self, by_scenario: dict[str, list[dict[str, float]]]) -> dict[str, float]:
         """Scenarios whose best classical baseline the model beats by the leaderboard's rule
-        (stats.why_not_beats: paired interval of the per-episode difference below 0, effort,
-        limit cycle; on the same validation episodes) and the geometric mean of main metric / baseline's
-        (means) over the selection scenarios."""
+        (stats.why_not_beats: paired interval of the per-episode difference below 0, and a result against
+        the scenario's reference point; on the same validation episodes) and the geometric mean of main
+        metric / baseline's (means) over the selection scenarios."""
         won, logs = 0, []
         for sc, rows in by_scenario.items():
             b, base_rows, scenario = self.baselines[sc], self.baseline_rows[sc], self.scenarios[sc]
             main, m = scenario.main_metric, means(rows)
             v = stats.paired([r[main] for r in rows], [r[main] for r in base_rows])
-            effort = m["effort_rms"] / b.effort_rms
             why = why_not_beats(
-                v,
-                effort,
-                m["limit_cycle_amp"],
-                b.limit_cycle_amp,
-                scenario.settle_band,
-                self.cfg.max_effort_ratio,
+                v, stats.Conduct.of(m), self.points[sc], scenario.action_scale, scenario.settle_band
             )
             won += not why
             logs.append(math.log(max(m[main], 1e-300) / max(b.main, 1e-300)))
@@ -289,6 +284,9 @@ class TrainingRun:
         self.baselines = {sc: best_classical(sc, classical) for sc, classical in by_scenario.items()}
         # and their episode rows, for the paired intervals of selection on several scenarios
         self.baseline_rows = {sc: rows[sc][b.name] for sc, b in self.baselines.items()}
+        self.points = {
+            sc: reference_point(sc, rows[sc], self.groups[sc], self.envs) for sc in cfg.eval_scenarios
+        }
         classical = by_scenario[cfg.scenario]
         self.baseline, self.zero = self.baselines[cfg.scenario], classical[ZERO]
         # admissible effort: relative to the best baseline, and to the base controller in residual mode
@@ -399,7 +397,7 @@ class TrainingRun:
                 "value": self.best["main"],
                 "score": self.best["score"],
                 "effort_rms": self.best["effort_rms"],
-                "limit_cycle_amp": self.best["limit_cycle_amp"],
+                "command_roughness": self.best["command_roughness"],
                 "best_classical": dataclasses.asdict(self.baseline),
                 "admissible_effort_rms": self.cfg.max_effort_ratio * self.effort_ref,
                 **(

@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from frictiongym.agents.evaluation import stats
 from frictiongym.agents.evaluation.evaluate import EnvCache, run_episodes
 from frictiongym.agents.learned.folder import sha256_bytes, write_policy
 from frictiongym.agents.learned.manifest import MODEL, NORMALIZER
@@ -34,7 +35,7 @@ from frictiongym.envs.scenario import load_scenario
 from frictiongym.envs.suites import load_suite, suite_held_out
 
 from ..base import ZERO, Controller
-from ..registry import BUILTIN, base_controller
+from ..registry import BUILTIN, LIMITS, base_controller
 from .config import VALIDATION_SUITE, RunConfig
 
 
@@ -46,7 +47,6 @@ class Baseline:
     name: str
     main: float
     effort_rms: float
-    limit_cycle_amp: float
 
 
 def validation_episodes(scenario: str, suite: str = VALIDATION_SUITE) -> list:
@@ -92,7 +92,21 @@ def best_classical(scenario: str, results: dict[str, dict[str, float]]) -> Basel
     main = load_scenario(scenario).main_metric
     name = min((n for n in results if n != ZERO), key=lambda n: results[n][main])
     m = results[name]
-    return Baseline(name, m[main], m["effort_rms"], m["limit_cycle_amp"])
+    return Baseline(name, m[main], m["effort_rms"])
+
+
+def reference_point(scenario: str, rows: dict[str, list[dict[str, float]]], episodes: list, envs: EnvCache):
+    """The scenario's reference point on the episodes (stats.reference_point, the rule's): its
+    uncompensated loop's rows (among `rows`, classical_rows's) and the friction-free linear design's
+    (TrackingLimit, Ideal where it does not apply), run here."""
+    sc = load_scenario(scenario)
+    limit = LIMITS["TrackingLimit"]()
+    if not limit.applies_to(envs.scenario(episodes[0])):
+        limit = LIMITS["Ideal"]()
+    return stats.reference_point(
+        stats.Conduct.of(means(rows[sc.uncompensated])),
+        stats.Conduct.of(means(episode_metrics(limit, episodes, envs))),
+    )
 
 
 def gradient_steps(model: Any) -> int:

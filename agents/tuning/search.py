@@ -10,8 +10,8 @@ learned models (agents/training/, `validation.episodes`), never `test` or `gener
 
 The objective is the rule that selects learned models: the geometric mean over the scenarios of the main
 metric relative to the design's (lower is better), plus 1 for every scenario on which the candidate is
-not a result (stats.why_not_beats against the scenario's uncompensated loop on the same episodes: effort
-at most MAX_EFFORT_RATIO times its effort_rms, no new limit cycle) and 100 if an episode diverged.
+not a result (stats.why_not_result against the scenario's reference point on the same episodes: the rule
+every leaderboard row meets) and 100 if an episode diverged.
 
 The tuned values go to configs/tuned.yaml (one entry per family and plant, with its manifest: budget,
 trials, seed, the exact command, commit, version, wall time, objective of the design and of the tuned
@@ -47,12 +47,11 @@ DIVERGED_COST = 100.0
 
 @dataclass(frozen=True)
 class Trial:
-    """One evaluated candidate: per scenario its mean main metric, effort_rms and limit_cycle_amp."""
+    """One evaluated candidate: per scenario its mean main metric and what the rule reads of it."""
 
     values: dict[str, Any]
     main: dict[str, float]
-    effort: dict[str, float]
-    limit_cycle: dict[str, float]
+    conduct: dict[str, stats.Conduct]
     diverged: int
 
 
@@ -65,10 +64,26 @@ def summarize(values: dict[str, Any], results: list[EpisodeResult], scenarios: d
     return Trial(
         values,
         {sc: mean(sc, s.main_metric) for sc, s in scenarios.items()},
-        {sc: mean(sc, "effort_rms") for sc in scenarios},
-        {sc: mean(sc, "limit_cycle_amp") for sc in scenarios},
+        {sc: stats.Conduct.of({m: mean(sc, m) for m in CONDUCT_METRICS}) for sc in scenarios},
         sum(r.diverged for r in results),
     )
+
+
+CONDUCT_METRICS = ("command_roughness", "saturated_share", "rest_oscillation")
+
+
+def reference_points(loop: Trial, episodes: list[Episode], scenarios: dict[str, Scenario]) -> dict:
+    """Each scenario's reference point (stats.reference_point): the uncompensated loop's trial and the
+    friction-free linear design (TrackingLimit, Ideal where it does not apply) on the same episodes."""
+    limits = evaluate([registry.make("TrackingLimit"), registry.make("Ideal")], episodes, progress=False)
+    out = {}
+    for sc in scenarios:
+        mine = [r for r in limits if r.scenario == sc]
+        name = "TrackingLimit" if any(r.controller == "TrackingLimit" for r in mine) else "Ideal"
+        rows = [r for r in mine if r.controller == name]
+        means = {m: float(np.mean([r.metrics[m] for r in rows])) for m in CONDUCT_METRICS}
+        out[sc] = stats.reference_point(loop.conduct[sc], stats.Conduct.of(means))
+    return out
 
 
 def run_candidate(
@@ -83,24 +98,18 @@ def run_candidate(
 
 @dataclass(frozen=True)
 class Objective:
-    """The tuning objective against the design and the uncompensated loop (module docstring)."""
+    """The tuning objective against the design and each scenario's reference point (module docstring)."""
 
     design: Trial
-    loop: Trial
-    bands: dict[str, float]
+    points: dict[str, stats.Conduct]
+    scenarios: dict[str, Scenario]
 
     def failures(self, t: Trial) -> list[str]:
         """The scenarios on which the candidate is not a result, with why."""
         out = []
         for sc in t.main:
-            effort = t.effort[sc] / self.loop.effort[sc] if self.loop.effort[sc] > 0 else math.inf
-            why = stats.why_not_beats(
-                {"diff_lo": -1.0, "diff_hi": -1.0},
-                effort,
-                t.limit_cycle[sc],
-                self.loop.limit_cycle[sc],
-                self.bands[sc],
-            )
+            s = self.scenarios[sc]
+            why = stats.why_not_result(t.conduct[sc], self.points[sc], s.action_scale, s.settle_band)
             if why:
                 out.append(f"{sc}: {'; '.join(why)}")
         return out
@@ -159,7 +168,7 @@ def tune(
         loop_f = pool.submit(run_candidate, loops.pop(), plant, None, eps)
         design = summarize(design_values, design_f.result(), scenarios)
         loop = summarize({}, loop_f.result(), scenarios)
-        objective = Objective(design, loop, {sc: s.settle_band for sc, s in scenarios.items()})
+        objective = Objective(design, reference_points(loop, eps, scenarios), scenarios)
         study = optuna.create_study(sampler=optuna.samplers.TPESampler(seed=seed))
         optuna.logging.set_verbosity(optuna.logging.WARNING)
         knobs = settings_cls.KNOBS

@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 from ..friction import Element, elements
-from .spec import JointSpec, PlantSpec
+from .spec import MAX_DELAY_PERIODS, JointSpec, PlantSpec
 
 # The bodies' geoms are visual only: they touch nothing (no contact in any plant), so collision detection
 # is switched off (the contact flag), which removes ~10 % of each step and changes no result.
@@ -41,7 +41,7 @@ def to_mjcf(spec: PlantSpec) -> str:
     """MJCF text of the plant. Actuator order: drive motor, each frictional joint's first friction element
     (friction_<joint>), the structure's further elements (friction_<joint>_<k>), rate feedback, load-side
     disturbance motor (its command is a torque in N·m)."""
-    nsample = spec.substeps + 2  # history for delays up to one control period
+    nsample = MAX_DELAY_PERIODS * spec.substeps + 2  # history for delays up to MAX_DELAY_PERIODS periods
     bodies, actuators, extra = [], [], []
     for j in spec.joints:
         coulomb = j.friction is not None and spec.friction_model == "coulomb"

@@ -16,7 +16,7 @@ from ..config import ConfigError, nonneg, number, positive
 from ..friction import BRISTLE_MODELS, LuGreParams, check_numerics, element_count, elements
 from ..sampler import stream
 from .mjcf import body_share, friction_joints
-from .spec import RANDOMIZATION_KEYS, PlantSpec
+from .spec import MAX_DELAY_PERIODS, RANDOMIZATION_KEYS, PlantSpec
 
 # keys drawn once per frictional joint
 PER_JOINT = ("friction_scale", "asymmetry_shift", "sigma0_scale", "stribeck_velocity_scale", "viscous_scale")
@@ -151,8 +151,9 @@ class EpisodeParams:
             nonneg(x, f"params.spring_damping[{i}]")
         positive(self.actuator_gain, "params.actuator_gain")
         nonneg(self.rate_feedback, "params.rate_feedback")
-        number(self.delay, "params.delay", 0.0, spec.control_period)
-        number(self.jitter, "params.jitter", 0.0, spec.control_period - self.delay)
+        span = MAX_DELAY_PERIODS * spec.control_period
+        number(self.delay, "params.delay", 0.0, span)
+        number(self.jitter, "params.jitter", 0.0, span - self.delay)
         nonneg(self.noise_scale, "params.noise_scale")
         scaled = spec_with(spec, self)
         for name, p in zip(names, self.friction, strict=True):

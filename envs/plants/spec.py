@@ -192,6 +192,9 @@ class PlantSpec:
 TIMESTEP_RANGE_S = (1e-6, 0.01)
 MAX_CONTROL_PERIOD_S = 1.0
 MAX_SUBSTEPS = 10_000
+# An episode's actuation delay plus jitter spans at most this many control periods: the plant's own (a
+# configured range stays within one period) and the one more period a robustness check adds.
+MAX_DELAY_PERIODS = 2
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 
 
