@@ -35,7 +35,7 @@ def test_a_delay_beyond_two_control_periods_is_refused_naming_the_field():
     spec = PlantSim("kang_robot").spec
     p = EpisodeParams.nominal(spec)
     EpisodeParams(**{**p.__dict__, "delay": 2 * spec.control_period}).validate(spec)
-    with pytest.raises(ConfigError, match="params.delay"):
+    with pytest.raises(ConfigError, match=r"params\.delay"):
         EpisodeParams(**{**p.__dict__, "delay": 2 * spec.control_period + spec.timestep}).validate(spec)
 
 

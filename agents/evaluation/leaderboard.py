@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
-from dataclasses import asdict
+from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from frictiongym.agents import registry
-from frictiongym.agents.evaluation import engine, report, stats
+from frictiongym.agents.evaluation import engine, judging, report, stats
 from frictiongym.agents.evaluation.board import Board
 from frictiongym.agents.evaluation.evaluate import EnvCache, EpisodeResult, run_episode, run_episodes
 from frictiongym.agents.evaluation.page import page
@@ -84,9 +84,36 @@ def per_seed(rs: list[EpisodeResult], metric: str) -> dict[int, float]:
     return {r.seed: r.metrics[metric] for r in rs}
 
 
-def summarize(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> dict[str, list[dict]]:
+@dataclass(frozen=True)
+class Judgement:
+    """The rows of the episodes that judge a run's rows (judging.py): the selection episodes' (classical
+    rows and the reference point's) and the robustness set's with each episode's variant."""
+
+    selection: list[EpisodeResult]
+    robustness: list[EpisodeResult]
+    variants: dict[Episode, str]
+
+
+def selected_baseline(
+    rows: list[EpisodeResult], scenario: Scenario, fragile: dict[tuple[str, str], str]
+) -> str | None:
+    """The scenario's baseline chosen on its selection episodes: the classical row with the lowest mean
+    main metric there among those that are results there (the rule against the point of the same
+    episodes) and not fragile; None if none is."""
+    table = summarize(rows, {scenario.name: scenario}).get(scenario.name, [])
+    ok = [r for r in table if classical(r["controller"]) and not r["chatters"]]
+    ok = [r for r in ok if (scenario.name, r["controller"]) not in fragile]
+    return ok[0]["controller"] if ok else None
+
+
+def summarize(
+    results: list[EpisodeResult], scenarios: dict[str, Scenario], judgement: Judgement | None = None
+) -> dict[str, list[dict]]:
     """Per scenario, one row per controller (references included and marked), sorted by the mean main
-    metric (see the module docstring)."""
+    metric (see the module docstring). With a judgement, a row fragile on the robustness set is not a
+    result, and the baseline is chosen on the selection episodes (selected_baseline); without one, on
+    these results."""
+    fragile = judging.fragile(judgement.robustness, judgement.variants, scenarios) if judgement else {}
     groups: dict[str, dict[str, list[EpisodeResult]]] = defaultdict(dict)
     for r in results:
         groups[r.scenario].setdefault(r.controller, []).append(r)
@@ -112,8 +139,14 @@ def summarize(results: list[EpisodeResult], scenarios: dict[str, Scenario]) -> d
         rows.sort(key=lambda r: r["main"][0] if math.isfinite(r["main"][0]) else math.inf)
         point = point_of(rows)
         for r in rows:
-            r["chatters"] = chatters(r, point, scenarios[sc]) if entry(r["controller"]) else ""
+            why = [chatters(r, point, scenarios[sc]) if entry(r["controller"]) else "",
+                   fragile.get((sc, r["controller"]), "")]  # fmt: skip
+            r["chatters"] = "; ".join(filter(None, why))
         best = next((r["controller"] for r in rows if classical(r["controller"]) and not r["chatters"]), None)
+        if judgement is not None:
+            picks = [r for r in judgement.selection if r.scenario == sc]
+            chosen = selected_baseline(picks, scenarios[sc], fragile)
+            best = chosen if chosen in by_ctrl else None
         for r in rows:
             r["baseline"] = best
             r["vs_baseline"] = None
@@ -331,21 +364,46 @@ def run(
     scenarios = {name: load_scenario(name) for name in dict.fromkeys(e.scenario for e in episodes)}
     loops = [s.uncompensated for s in scenarios.values()]  # g needs them on every episode
     names = list(dict.fromkeys([*REFERENCES, *loops, *names]))
-    if out is None:
-        jobs, skipped = engine.plan(names, episodes, models)
-        results: list[EpisodeResult] = []
-        engine.run_jobs(jobs, workers, results.extend, progress, models, ray)
-        results = engine.canonical(results, jobs, engine.scoring(episodes))
-    else:
-        options = {"episodes": [asdict(e) for e in episodes], "controllers": names, "models": list(models)}
-        results, skipped = engine.evaluate_to(out, names, episodes, options, workers, progress, models, ray)
+    backend = (workers, progress, models, ray)
+    results, skipped = _evaluate(names, episodes, out, *backend)
+    variants = judging.robustness_episodes(episodes, scenarios)
+    judgement = Judgement(
+        _evaluate([*filter(classical, names), *JUDGING_LIMITS], judging.selection_episodes(episodes),
+                  out / SELECTION if out else None, *backend)[0],
+        _evaluate(list(filter(entry, names)), list(variants), out / ROBUSTNESS if out else None, *backend)[0],
+        variants,
+    )  # fmt: skip
     if out is not None and skipped:
         rows = [{"controller": n, "scenario": sc, "reason": why} for n, sc, why in skipped]
         atomic_text(out / "skipped.csv", csv_text(rows))
     if progress and skipped:
         where = f": {out / 'skipped.csv'} gives each with its reason" if out is not None else ""
         print(f"skipped {len(skipped)} (controller, scenario) pairs that do not apply{where}")
-    return results, summarize_and_write(suite, episodes, results, models, out)
+    return results, summarize_and_write(suite, episodes, results, models, out, judgement)
+
+
+SELECTION, ROBUSTNESS = "selection", "robustness"  # a run's sub-folders for its judging episodes' rows
+JUDGING_LIMITS = ("TrackingLimit", "Ideal")  # the selection episodes' reference point besides the loop
+
+
+def _evaluate(
+    names: list[str],
+    episodes: list[Episode],
+    out: Path | None,
+    workers: int,
+    progress: bool,
+    models: tuple[str, ...],
+    ray: engine.Ray | None,
+) -> tuple[list[EpisodeResult], list[tuple[str, str, str]]]:
+    """Every applicable (controller, episode) job, scored; with out, through out/episodes.csv (a rerun
+    resumes: engine.evaluate_to). Returns the results and the skipped (controller, scenario, reason)."""
+    if out is None:
+        jobs, skipped = engine.plan(names, episodes, models)
+        results: list[EpisodeResult] = []
+        engine.run_jobs(jobs, workers, results.extend, progress, models, ray)
+        return engine.canonical(results, jobs, engine.scoring(episodes)), skipped
+    options = {"episodes": [asdict(e) for e in episodes], "controllers": names, "models": list(models)}
+    return engine.evaluate_to(out, names, episodes, options, workers, progress, models, ray)
 
 
 def check_plugins(sources: tuple[str, ...], episodes: list[Episode]) -> None:
@@ -371,11 +429,12 @@ def summarize_and_write(
     results: list[EpisodeResult],
     models: tuple[str, ...],
     out: Path | None,
+    judgement: Judgement | None = None,
 ) -> dict[str, list[dict]]:
-    """The tables of a run's results and, with out, its leaderboard.md, leaderboard.csv, aggregate.csv and
-    plots written there."""
+    """The tables of a run's results (judged by `judgement`: summarize) and, with out, its leaderboard.md,
+    leaderboard.csv, aggregate.csv and plots written there."""
     scenarios = {name: load_scenario(name) for name in dict.fromkeys(e.scenario for e in episodes)}
-    table = summarize(results, scenarios)
+    table = summarize(results, scenarios, judgement)
     if out is not None:
         randomize = {e.scenario: e.randomize for e in episodes}
         board = Board(
@@ -402,4 +461,10 @@ def report_from(src: Path, out: Path, allowed: tuple[str, ...] = ()) -> dict[str
     options, results, _ = engine.finished_run(src, allowed)
     episodes = [Episode.from_dict(e) for e in options["episodes"]]
     suite = next((name for name in suite_names() if load_suite(name) == episodes), "inline")
-    return summarize_and_write(suite, episodes, results, tuple(options["models"]), out)
+    scenarios = {name: load_scenario(name) for name in dict.fromkeys(e.scenario for e in episodes)}
+    judgement = Judgement(
+        engine.finished_run(src / SELECTION, allowed)[1],
+        engine.finished_run(src / ROBUSTNESS, allowed)[1],
+        judging.robustness_episodes(episodes, scenarios),
+    )
+    return summarize_and_write(suite, episodes, results, tuple(options["models"]), out, judgement)
