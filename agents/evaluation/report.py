@@ -16,7 +16,7 @@ import numpy as np
 
 from frictiongym.agents import registry
 from frictiongym.agents.base import ZERO
-from frictiongym.agents.evaluation import stats
+from frictiongym.agents.evaluation import judging, stats
 from frictiongym.envs.metrics import METRIC_NAMES
 from frictiongym.envs.records import pyplot
 from frictiongym.envs.scenario import Scenario
@@ -32,8 +32,13 @@ RULE = (
     f"{stats.CHATTER_RATIO:g}x the point's plus {100 * stats.CHATTER_FLOOR:g} % of the command's range), "
     f"saturate (saturated periods at most {stats.SATURATION_RATIO:g}x the point's share plus "
     f"{100 * stats.SATURATION_FLOOR:g} %) or add a limit cycle (the error's sustained oscillation where "
-    f"the reference rests at most {stats.CYCLE_RATIO:g}x the point's plus the settling band); the same "
-    "rule for classical and learned rows."
+    f"the reference rests at most {stats.CYCLE_RATIO:g}x the point's plus the settling band), and is not "
+    f"fragile: on {judging.ROBUSTNESS_SEEDS} validation-range episodes per scenario, each with "
+    f"{', '.join(judging.VARIANTS.values())} (where the plant has noise or a spring), it neither diverges, "
+    "saturates beyond the uncompensated loop's share nor falls behind the loop's main metric; the same "
+    "rule for classical and learned rows. The baseline is the classical row that is a result with the "
+    f"lowest main metric on the scenario's first {judging.SELECTION_EPISODES} validation-range episodes, "
+    "never on the episodes it is judged on."
 )
 
 
