@@ -206,15 +206,46 @@ def test_the_answer_shows_learned_entries_and_plug_ins_in_their_own_columns():
     heads = ["best learned", "learned vs the classical", "best plug-in", "plug-in vs the classical"]
     assert report.ANSWER_HEAD[2:6] == heads
     base, learned, learned_vs, plugin, plugin_vs = got["cells"][:5]
-    assert base[0].startswith("DOB: ") and learned[0].startswith("ResSAC-s0: ")
+    assert base[0].startswith("DOB: ") and learned[0].startswith("ResSAC-s1: ")  # the worse middle seed
     assert plugin[0].startswith("NaiveFF: ")
-    assert learned_vs == "no (worse); 0 of 2 beat it" and plugin_vs == "beats it; 1 of 1 beat it"
+    assert learned_vs == "no (worse) (the median of 2 seeds); 0 of 1 designs beat it"
+    assert plugin_vs == "beats it; 1 of 1 designs beat it"
     ((_, verdict, lines),) = report.headline(board)
     assert verdict == (
-        "a learned entry beats the best classical on 0 of 1 scenarios; "
-        "a plug-in entry beats the best classical on 1 of 1 scenarios"
+        "a learned design beats the best classical on 0 of 1 scenarios; "
+        "a plug-in design beats the best classical on 1 of 1 scenarios"
     )
     assert len(lines) == 1 and lines[0].startswith("kang_regulation (final_error in rad): NaiveFF ")
+
+
+def test_a_design_beats_the_baseline_when_its_median_seed_does_and_every_seed_is_reported():
+    """Three seeds of one design, one of them beating the baseline: the design does not (its median seed
+    does not), and each seed keeps its own verdict in the table; a design whose median seed wins does."""
+    from frictiongym.agents.evaluation import report
+    from frictiongym.agents.evaluation.board import Board
+
+    sc = load_scenario("kang_regulation")
+    win = {"diff": -1e-4, "diff_lo": -2e-4, "diff_hi": -5e-5, "p_improve": 0.9}
+    worse = {"diff": 1e-4, "diff_lo": 5e-5, "diff_hi": 2e-4, "p_improve": 0.0}
+
+    def row(name, main, vs=None):
+        return {"controller": name, "baseline": "DOB", "main": (main,) * 3, "metrics": conduct_metrics(),
+                "vs_baseline": vs, "uncompensated": name == "PD"}  # fmt: skip
+
+    def answer(seeds):
+        table = {"kang_regulation": [row("DOB", 2e-4), row("PD", 1e-3), *seeds]}
+        about = {r["controller"]: "SAC" for r in seeds}
+        judged = leaderboard.verdicts(table, {"kang_regulation": sc})
+        board = Board("test", {"kang_regulation": sc}, [], table, [], judged, {}, {}, about)
+        return judged, report.answer_rows(board)["kang_robot"][0]["cells"]
+
+    lucky = [row("Res-s0", 1e-4, win), row("Res-s1", 3e-4, worse), row("Res-s2", 4e-4, worse)]
+    judged, cells = answer(lucky)
+    assert [v["beats_baseline"] for v in judged] == [True, False, False]
+    assert cells[1][0].startswith("Res-s1: ") and cells[2].startswith("no (worse) (the median of 3 seeds)")
+    steady = [row("Res-s0", 1e-4, win), row("Res-s1", 1.5e-4, win), row("Res-s2", 4e-4, worse)]
+    _, cells = answer(steady)
+    assert cells[2] == "beats it (the median of 3 seeds); 1 of 1 designs beat it"
 
 
 def test_a_row_equal_to_its_baseline_is_a_tie_and_a_row_above_it_is_worse():

@@ -8,6 +8,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 import textwrap
 from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
@@ -207,14 +208,36 @@ def kind(board: Board, name: str) -> str:
     return "learned" if name in board.about else "plug-in"
 
 
+SEED_SUFFIX = re.compile(r"-s\d+$")  # a trained model's seed in its name: ResSAC-kang_regulation-s2
+
+
+def designs(rows: list[dict]) -> dict[str, list[dict]]:
+    """Rows grouped by design: the name without its training seed's suffix (`-s<seed>`); a row without
+    one is a design of its own."""
+    out: dict[str, list[dict]] = {}
+    for r in rows:
+        out.setdefault(SEED_SUFFIX.sub("", r["controller"]), []).append(r)
+    return out
+
+
+def _sort_key(r: dict) -> float:
+    return r["main"][0] if math.isfinite(r["main"][0]) else math.inf
+
+
+def median_seed(rows: list[dict]) -> dict:
+    """A design's median training seed by its mean main metric (of an even count the worse of the middle
+    two): the seed that speaks for the design, as a design beats the baseline when its median seed does."""
+    return sorted(rows, key=_sort_key)[len(rows) // 2]
+
+
 def answer_rows(board: Board) -> dict[str, list[dict]]:
     """The suite's question per plant, a row per scenario: {"scenario": "name (main metric)", "cells":
     [best classical, best learned, its verdict, best plug-in, its verdict, Ideal, tracking limit,
     friction-free optimum], each
     cell "n/a", a text or (text, the main metric's mean to sort by); "sides": per kind (KINDS), its best
-    row, how many of its entries beat the baseline and how many ran}. The best classical is the baseline
-    (the best classical row that is a result); the best of a kind is the best that beats it, else the
-    best."""
+    design's median seed, how many of its designs beat the baseline and how many ran}. The best classical
+    is the baseline (chosen on the selection episodes); a design (designs) is judged by its median seed
+    (median_seed), and the best of a kind is the best design that beats it, else the best design."""
     judged = {(v["scenario"], v["controller"]): v for v in board.verdicts}
     by_plant: dict[str, list[dict]] = {}
     for sc, rows in board.table.items():
@@ -229,15 +252,18 @@ def answer_rows(board: Board) -> dict[str, list[dict]]:
         sides = {}
         for k in KINDS:
             other = [r for r in rows if (sc, r["controller"]) in judged and kind(board, r["controller"]) == k]
-            wins = [r for r in other if judged[(sc, r["controller"])]["beats_baseline"]]
-            best = (wins or other or [None])[0]  # rows are sorted by the main metric
+            medians = [(median_seed(seeds), len(seeds)) for seeds in designs(other).values()]
+            medians.sort(key=lambda m: _sort_key(m[0]))
+            wins = [m for m in medians if judged[(sc, m[0]["controller"])]["beats_baseline"]]
+            best, seeds = (wins or medians or [(None, 0)])[0]
             verdict = "n/a"
             if best is not None:
                 v = judged[(sc, best["controller"])]
                 verdict = "beats it" if v["beats_baseline"] else f"no ({v['why_not']})"
-                verdict += f"; {len(wins)} of {len(other)} beat it"
+                verdict += f" (the median of {seeds} seeds)" if seeds > 1 else ""
+                verdict += f"; {len(wins)} of {len(medians)} designs beat it"
             cells += [cell(best), verdict]
-            sides[k] = {"best": best, "wins": len(wins), "entries": len(other)}
+            sides[k] = {"best": best, "wins": len(wins), "entries": len(medians)}
         limit = by.get("TrackingLimit") or by.get("Ideal")
         cells += [cell(by.get("Ideal")), cell(limit), cell(by.get("Optimum"))]
         by_plant.setdefault(s.spec.name, []).append(
@@ -263,7 +289,7 @@ def headline(board: Board) -> list[tuple[str, str, list[str]]]:
             judged = [r for r in rows if r["sides"][k]["entries"]]
             won = [r for r in judged if r["sides"][k]["wins"]]
             if judged:
-                verdicts.append(f"a {k} entry beats the best classical on {len(won)} of {len(judged)}")
+                verdicts.append(f"a {k} design beats the best classical on {len(won)} of {len(judged)}")
             for r in won:
                 main = board.scenarios[r["name"]].main_metric
                 best = r["sides"][k]["best"]
