@@ -29,6 +29,7 @@ import importlib
 import importlib.util
 import sys
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from functools import cache, partial
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -383,6 +384,38 @@ def descriptions(models: Sequence[str | Path]) -> dict[str, str]:
         trained = f", trained on {m.scenario}" if m.scenario else ""
         seed = f", seed {m.seed}" if m.seed is not None else ""
         out[name] = design + trained + seed
+    return out
+
+
+@dataclass(frozen=True)
+class Budget:
+    """What an entry's tuning or training spent, in the same units on both sides: env steps (control
+    periods simulated) and wall time (s), and what was counted."""
+
+    env_steps: int
+    wall_s: float
+    counted: str
+
+
+def budgets(models: Sequence[str | Path] = ()) -> dict[tuple[str, str], Budget]:
+    """{(entry, plant): Budget} of every tuned twin (configs/tuned.yaml: its trials x its validation
+    episodes' control periods, the design and the reference rows it also ran left out) and every saved
+    model of `models` (its manifest: the training env steps; the validation evaluations left out), with
+    their wall times."""
+    out = {}
+    for family, plants in tuned_entries().items():
+        for plant, e in plants.items():
+            m = e.get("manifest", {})
+            if "trials" not in m or "validation" not in m:
+                continue
+            periods = sum(len(eps) * load_scenario(sc).episode_steps for sc, eps in m["validation"].items())
+            counted = f"tuning: {m['trials']} trials x {periods:,} control periods of validation episodes"
+            steps = m.get("env_steps", m["trials"] * periods)  # written by tunes since 2026-12-07
+            out[family + SUFFIX, plant] = Budget(steps, float(m["wall_s"]), counted)
+    for name, m in _manifests(tuple(str(x) for x in models)).items():
+        if m.steps is not None and m.wall_time_s is not None:
+            for plant in m.plants:
+                out[name, plant] = Budget(m.steps, m.wall_time_s, "training: env steps")
     return out
 
 

@@ -345,3 +345,34 @@ def test_the_response_shows_the_best_learned_entry_and_the_page_says_what_it_is(
     page = (tmp_path / "index.html").read_text()
     about = "SAC residual over TaskScheduled, trained on kang_random, seed 0"
     assert f"<small class='about'>{about}</small>" in page
+
+
+def test_budgets_read_in_env_steps_and_wall_time_on_both_sides():
+    """A tuned twin's budget is its trials times its validation episodes' control periods (AdaptiveFF on
+    the EMPS: 80 trials x 10 episodes of emps_drift's 6,200 periods), a saved model's its training env
+    steps, each with its wall time; the answer lists the ones its tables name."""
+    from frictiongym.agents.evaluation import report
+    from frictiongym.agents.evaluation.board import Board
+
+    models = ("agents/models/specialist",)
+    b = registry.budgets(models)
+    tuned = b["AdaptiveFF[tuned]", "emps"]
+    assert tuned.env_steps == 80 * 10 * load_scenario("emps_drift").episode_steps == 4_960_000
+    assert tuned.wall_s > 0 and tuned.counted.startswith("tuning: 80 trials")
+    learned = b["ResSAC-kang_regulation-s0", "kang_robot"]
+    assert (learned.env_steps, learned.counted) == (60_000, "training: env steps")
+    sc = load_scenario("kang_regulation")
+
+    def row(name, main, vs=None):
+        return {"controller": name, "baseline": "DOB", "main": (main,) * 3, "metrics": conduct_metrics(),
+                "vs_baseline": vs, "uncompensated": name == "PD"}  # fmt: skip
+
+    worse = {"diff": 1e-4, "diff_lo": 5e-5, "diff_hi": 2e-4, "p_improve": 0.0}
+    table = {sc.name: [row("DOB", 2e-4), row("PD", 1e-3), row("ResSAC-kang_regulation-s0", 3e-4, worse)]}
+    judged = leaderboard.verdicts(table, {sc.name: sc})
+    about = {"ResSAC-kang_regulation-s0": "SAC residual"}
+    board = Board("test", {sc.name: sc}, [], table, [], judged, {}, {}, about, b)
+    text = report.answer(board)
+    assert "## Budgets" in text
+    line = f"| ResSAC-kang_regulation-s0 | kang_robot | 60,000 | {learned.wall_s:.0f} | training: env steps |"
+    assert line in text

@@ -195,6 +195,7 @@ def test_tuning_improves_on_the_design_on_validation():
     assert obj["tuned"] < obj["design"]
     assert m["trials"] == 6 and set(m["validation"]) == {"kang_ramp", "kang_random", "kang_drift"}
     assert all(s in range(500000, 600000) for seeds in m["validation"].values() for s in seeds)
+    assert m["env_steps"] == 6 * sum(2 * load_scenario(sc).episode_steps for sc in m["validation"])
     assert entry["values"] != m["design_values"]
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from frictiongym.agents.evaluation.evaluate import EpisodeResult
+from frictiongym.agents.registry import Budget
 from frictiongym.envs.scenario import Scenario
 
 
@@ -22,3 +23,4 @@ class Board:
     penalties: dict[str, float]  # leaderboard.penalty, per scenario
     responses: dict[str, list[EpisodeResult]]  # per scenario: best learned, best classical, loop, Ideal
     about: dict[str, str] = field(default_factory=dict)  # a saved model's id -> what it is (registry)
+    budgets: dict[tuple[str, str], Budget] = field(default_factory=dict)  # (entry, plant): registry.budgets

@@ -447,6 +447,7 @@ def summarize_and_write(
             {sc: penalty(results, s) for sc, s in scenarios.items()},
             responses(results, table, scenarios, randomize, models),
             registry.descriptions(models),
+            registry.budgets(models),
         )
         out.mkdir(parents=True, exist_ok=True)
         write(board, out)

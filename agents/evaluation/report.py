@@ -344,7 +344,35 @@ def answer(board: Board) -> str:
         for row in rows:
             cells = [c if isinstance(c, str) else c[0] for c in row["cells"]]
             lines.append(f"| {row['scenario']} | " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + budget_lines(board)) + "\n"
+
+
+def budget_lines(board: Board) -> list[str]:
+    """answer.md's budgets: what each tuned or trained entry the answer names spent, in env steps and wall
+    time (registry.budgets), so both sides' budgets read in the same units."""
+    named: dict[tuple[str, str], None] = {}
+    for plant, rows in answer_rows(board).items():
+        for row in rows:
+            for r in [row["baseline"], *(side["best"] for side in row["sides"].values())]:
+                if r is not None and (r["controller"], plant) in board.budgets:
+                    named[r["controller"], plant] = None
+    if not named:
+        return []
+    lines = [
+        "",
+        "## Budgets",
+        "",
+        "What each tuned or trained entry the tables name spent (a tuned twin: its search on validation "
+        "episodes; a learned model: its training; each in env steps, one step a control period, and wall "
+        "time on 2 cores).",
+        "",
+        "| entry | plant | env steps | wall time (s) | counted |",
+        "|---|---|---|---|---|",
+    ]
+    for name, plant in named:
+        b = board.budgets[name, plant]
+        lines.append(f"| {name} | {plant} | {b.env_steps:,} | {b.wall_s:.0f} | {b.counted} |")
+    return lines
 
 
 def table_csv(board: Board) -> str:

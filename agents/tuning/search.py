@@ -200,6 +200,7 @@ def tune(
         "budget_s": budget_s,
         "trials_cap": trials,
         "trials": done,
+        "env_steps": done * sum(scenarios[e.scenario].episode_steps for e in eps),  # control periods
         "wall_s": round(wall, 1),
         "workers": workers,
         "validation": {sc: [e.seed for e in eps if e.scenario == sc] for sc in scenarios},
