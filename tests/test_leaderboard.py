@@ -75,6 +75,12 @@ def test_script_writes_markdown_csv_and_plots(tmp_path):
     # where a reference is tracked
     assert {r["controller"] for r in rows} == {
         "Zero", "Ideal", "Oracle", "Optimum", "TrackingLimit", "PD", "PID"}  # fmt: skip
+    assert "not_a_result" in rows[0]
+    # the judging sets: the entries and the loop on validation-range episodes with their variants
+    robust = list(csv.DictReader((tmp_path / "robustness" / "episodes.csv").read_text().splitlines()))
+    assert {r["controller"] for r in robust} == {"PD", "PID"} and all(r["params"] for r in robust)
+    picks = list(csv.DictReader((tmp_path / "selection" / "episodes.csv").read_text().splitlines()))
+    assert all(500000 <= int(r["seed"]) < 600000 for r in robust + picks)
     episodes = list(csv.DictReader((tmp_path / "episodes.csv").read_text().splitlines()))
     assert {(r["controller"], r["scenario"]) for r in episodes} >= {
         ("PD", "kang_regulation_20deg"),

@@ -377,7 +377,8 @@ def budget_lines(board: Board) -> list[str]:
 
 def table_csv(board: Board) -> str:
     """leaderboard.csv, the tables: one row per (scenario, controller): main metric, g and score (mean, lo,
-    hi), the paired comparison against the baseline, and every metric (mean, lo, hi)."""
+    hi), the paired comparison against the baseline, why the row is not a result ("" if it is one), and
+    every metric (mean, lo, hi)."""
     table, scenarios = board.table, board.scenarios
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
@@ -395,7 +396,7 @@ def table_csv(board: Board) -> str:
                 "g_tracking_hi",
             ),
             *("score_mean", "score_lo", "score_hi"),
-            *("baseline", "diff_mean", "diff_lo", "diff_hi", "p_improve"),
+            *("baseline", "diff_mean", "diff_lo", "diff_hi", "p_improve", "not_a_result"),
             *(f"{m}_{k}" for m in METRIC_NAMES for k in ("mean", "lo", "hi")),
         ]
     )
@@ -407,6 +408,7 @@ def table_csv(board: Board) -> str:
                 + [repr(x) for x in (*r["main"], *r["g"], *r["g_tracking"], *r["score"])]
                 + [r["baseline"]]
                 + [repr(v.get(k, math.nan)) for k in ("diff", "diff_lo", "diff_hi", "p_improve")]
+                + [r.get("chatters", "")]
                 + [repr(x) for m in METRIC_NAMES for x in r["metrics"][m]]
             )
     return buf.getvalue()
