@@ -18,7 +18,6 @@ each is the same episode with one thing changed.
 
 from __future__ import annotations
 
-import json
 import math
 from collections import defaultdict
 
@@ -81,12 +80,6 @@ def robustness_episodes(episodes: list[Episode], scenarios: dict[str, Scenario])
     return out
 
 
-def variant_of(result: EpisodeResult, robustness: dict[Episode, str]) -> str:
-    """The variant a robustness row ran on."""
-    by_text = {(e.scenario, e.seed, params_text(e)): v for e, v in robustness.items()}
-    return by_text[(result.scenario, result.seed, result.params)]
-
-
 def fragile(
     results: list[EpisodeResult], robustness: dict[Episode, str], scenarios: dict[str, Scenario]
 ) -> dict[tuple[str, str], str]:
@@ -119,8 +112,3 @@ def fragile(
 def _mean(rows: list[EpisodeResult], metric: str) -> float:
     x = np.array([r.metrics[metric] for r in rows], dtype=float)
     return float(np.mean(x)) if np.isfinite(x).all() else math.inf
-
-
-def pinned_text(pinned: dict[str, float]) -> str:
-    """A variant's pinned values as the results files write an episode's (sorted JSON)."""
-    return json.dumps(dict(sorted(pinned.items())))
