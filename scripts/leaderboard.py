@@ -62,6 +62,12 @@ def main(argv: list[str] | None = None) -> int:
         metavar="DIR",
         help="write the report of the finished run in DIR to --out, reading DIR only (e.g. read-only media)",
     )
+    ap.add_argument(
+        "--no-judging",
+        action="store_true",
+        help="a quick look: skip the judging sets (the baseline is then chosen on the run's own episodes and "
+        "no row runs the robustness set); the answer says it is not one to quote",
+    )
     add_backend_arguments(ap)
     ap.add_argument("--out", type=Path, default=Path("out/leaderboard"), help="the run's folder")
     args = ap.parse_args(argv)
@@ -100,7 +106,14 @@ def main(argv: list[str] | None = None) -> int:
 
     def run() -> int:
         leaderboard.run(
-            suite, args.controllers, args.out, workers=args.workers, episodes=episodes, models=models, ray=ray
+            suite,
+            args.controllers,
+            args.out,
+            workers=args.workers,
+            episodes=episodes,
+            models=models,
+            ray=ray,
+            judge=not args.no_judging,
         )
         return 0
 

@@ -172,7 +172,8 @@ def test_saved_model_is_an_entry_and_a_mismatched_scenario_is_skipped_with_its_r
     folder = convert_folder(sb3, tmp_path / "models", trust_pickle=True)
     episodes = [Episode("kang_regulation", 5, True), Episode("m220_reversal_tracking", 5, True)]
     out = tmp_path / "lb"
-    leaderboard.run("inline", ["PD", "PPO-kang"], out, False, 1, episodes, (tmp_path / "models",))
+    models = (tmp_path / "models",)
+    leaderboard.run("inline", ["PD", "PPO-kang"], out, False, 1, episodes, models, judge=False)
     rows = list(csv.DictReader((out / "episodes.csv").read_text().splitlines()))
     model_rows = [r for r in rows if r["controller"] == "PPO-kang"]
     assert [r["scenario"] for r in model_rows] == ["kang_regulation"]  # 3 observations there, 9 on the M220

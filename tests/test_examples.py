@@ -39,7 +39,7 @@ def test_the_example_runs_on_the_leaderboard_from_its_file_with_two_workers(tmp_
     out = tmp_path / "lb"
     args = ["--scenarios", "kang_ramp", "kang_regulation", "--seeds", "5000-5001", "--randomize"]
     code = load_script("leaderboard").main(
-        [*args, "--controllers", "PID", spec, "--models", "--workers", "2", "--out", str(out)]
+        [*args, "--controllers", "PID", spec, "--models", "--workers", "2", "--out", str(out), "--no-judging"]
     )
     assert code == 0
     rows = list(csv.DictReader((out / "episodes.csv").open()))
@@ -95,7 +95,7 @@ def test_no_tracking_scenario_leaves_the_best_classical_behind_a_naive_feed_forw
     episodes = [Episode(n, s, True) for n in tracking for s in (6000, 6001, 6002)]
     strongest = ("PID+FF", "PID+MFF", "Cascade+MFF", "DOB")
     classical = ["PD", "PID", *(n for n in registry.BUILTIN if n.split("[")[0] in strongest)]
-    _, table = leaderboard.run("inline", [*classical, naive], None, False, 2, episodes)
+    _, table = leaderboard.run("inline", [*classical, naive], None, False, 2, episodes, judge=False)
     mine = leaderboard.verdicts(table, {n: load_scenario(n) for n in table})
     assert {v["controller"] for v in mine} == {"NaiveFF"}
     for v in mine:

@@ -69,6 +69,7 @@ def test_the_leaderboard_runs_the_committed_learned_models_without_torch(tmp_pat
         "1",
         "--out",
         str(out),
+        "--no-judging",
     )
     assert p.returncode == 0, p.stderr[-800:]
     learned = {r["controller"] for r in csv.DictReader((out / "episodes.csv").open())} & {

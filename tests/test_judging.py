@@ -1,6 +1,7 @@
 """The episodes that judge a leaderboard's rows (agents/evaluation/judging.py): the robustness set, the
 fragile rows, and the baseline chosen on the selection episodes."""
 
+import csv
 import math
 from dataclasses import replace
 
@@ -131,12 +132,22 @@ class StiffCascade(CascadeModelFF):
 
 
 @pytest.mark.slow  # a leaderboard of two rows with its judging episodes, ~15 s
-def test_a_cascade_with_three_times_its_velocity_gain_is_marked_fragile_on_the_emps():
+def test_a_cascade_with_three_times_its_velocity_gain_is_marked_fragile_on_the_emps(tmp_path):
     """Issue 66's check: one more control period (1 ms) of delay on the EMPS drives the stiff cascade into
-    saturation most of the time; it is not a result however small its tracking error."""
+    saturation most of the time; it is not a result however small its tracking error. The run writes the
+    judging sets' rows, on validation-range episodes, into their folders."""
     _, table = leaderboard.run(
-        episodes=[Episode("emps_tracking", 1000, True)], controllers=[StiffCascade], progress=False
+        episodes=[Episode("emps_tracking", 1000, True)],
+        controllers=[StiffCascade],
+        progress=False,
+        out=tmp_path,
     )
+    robust = list(csv.DictReader((tmp_path / "robustness" / "episodes.csv").read_text().splitlines()))
+    assert {r["controller"] for r in robust} == {"PID", StiffCascade.name} and all(
+        r["params"] for r in robust
+    )
+    picks = list(csv.DictReader((tmp_path / "selection" / "episodes.csv").read_text().splitlines()))
+    assert all(500000 <= int(r["seed"]) < 600000 for r in robust + picks)
     row = next(r for r in table["emps_tracking"] if r["controller"] == StiffCascade.name)
     assert "fragile: saturates" in row["chatters"] and "one more control period of delay" in row["chatters"]
     assert row["baseline"] != StiffCascade.name

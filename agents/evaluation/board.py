@@ -24,3 +24,4 @@ class Board:
     responses: dict[str, list[EpisodeResult]]  # per scenario: best learned, best classical, loop, Ideal
     about: dict[str, str] = field(default_factory=dict)  # a saved model's id -> what it is (registry)
     budgets: dict[tuple[str, str], Budget] = field(default_factory=dict)  # (entry, plant): registry.budgets
+    judged: bool = True  # the judging sets ran (leaderboard.run's judge)

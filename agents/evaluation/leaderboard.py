@@ -344,13 +344,16 @@ def run(
     episodes: list[Episode] | None = None,
     models: tuple[str, ...] = (),
     ray: engine.Ray | None = None,
+    judge: bool = True,
 ) -> tuple[list[EpisodeResult], dict[str, list[dict]]]:
     """Evaluate (the suite, or the given episodes) with the reference rows (Zero, Ideal, Oracle) and each
     scenario's uncompensated loop always included, and summarize. `controllers`: names, a user's
     controllers as "module:attr" / "file.py:attr" specs or classes (registry.entries), or None for every
     default entry. With out: results go to
     out/episodes.csv incrementally (a rerun resumes), then leaderboard.md, leaderboard.csv (the tables),
-    aggregate.csv (the per-plant aggregates) and PNG plots, each written atomically."""
+    aggregate.csv (the per-plant aggregates) and PNG plots, each written atomically. Then the judging sets
+    (judging.py) choose the baselines and find the fragile rows; judge=False skips them (a quick look: the
+    baseline is chosen on these episodes, and the report says the run was not judged)."""
     controllers, models = registry.entries(controllers, models)
     available = registry.available(models)
     names = controllers or registry.default_entries(models)
@@ -366,13 +369,16 @@ def run(
     names = list(dict.fromkeys([*REFERENCES, *loops, *names]))
     backend = (workers, progress, models, ray)
     results, skipped = _evaluate(names, episodes, out, *backend)
-    variants = judging.robustness_episodes(episodes, scenarios)
-    judgement = Judgement(
-        _evaluate([*filter(classical, names), *JUDGING_LIMITS], judging.selection_episodes(episodes),
-                  out / SELECTION if out else None, *backend)[0],
-        _evaluate(list(filter(entry, names)), list(variants), out / ROBUSTNESS if out else None, *backend)[0],
-        variants,
-    )  # fmt: skip
+    judgement = None
+    if judge:
+        variants = judging.robustness_episodes(episodes, scenarios)
+        picks, robust = judging.selection_episodes(episodes), list(variants)
+        pickers = [*filter(classical, names), *JUDGING_LIMITS]
+        judgement = Judgement(
+            _evaluate(pickers, picks, out and out / SELECTION, *backend)[0],
+            _evaluate(list(filter(entry, names)), robust, out and out / ROBUSTNESS, *backend)[0],
+            variants,
+        )
     if out is not None and skipped:
         rows = [{"controller": n, "scenario": sc, "reason": why} for n, sc, why in skipped]
         atomic_text(out / "skipped.csv", csv_text(rows))
@@ -448,6 +454,7 @@ def summarize_and_write(
             responses(results, table, scenarios, randomize, models),
             registry.descriptions(models),
             registry.budgets(models),
+            judged=judgement is not None,
         )
         out.mkdir(parents=True, exist_ok=True)
         write(board, out)
@@ -463,9 +470,11 @@ def report_from(src: Path, out: Path, allowed: tuple[str, ...] = ()) -> dict[str
     episodes = [Episode.from_dict(e) for e in options["episodes"]]
     suite = next((name for name in suite_names() if load_suite(name) == episodes), "inline")
     scenarios = {name: load_scenario(name) for name in dict.fromkeys(e.scenario for e in episodes)}
-    judgement = Judgement(
-        engine.finished_run(src / SELECTION, allowed)[1],
-        engine.finished_run(src / ROBUSTNESS, allowed)[1],
-        judging.robustness_episodes(episodes, scenarios),
-    )
+    judgement = None
+    if (src / SELECTION).exists():  # a run with --no-judging has no judging sets
+        judgement = Judgement(
+            engine.finished_run(src / SELECTION, allowed)[1],
+            engine.finished_run(src / ROBUSTNESS, allowed)[1],
+            judging.robustness_episodes(episodes, scenarios),
+        )
     return summarize_and_write(suite, episodes, results, tuple(options["models"]), out, judgement)

@@ -41,6 +41,10 @@ RULE = (
     f"lowest main metric on the scenario's first {judging.SELECTION_EPISODES} validation-range episodes, "
     "never on the episodes it is judged on."
 )
+NOT_JUDGED = (
+    "**Not judged** (a quick look, `--no-judging`): this run skipped the judging sets, so its baselines are "
+    "chosen on its own episodes and no row was checked for margins; not an answer to quote."
+)
 
 
 def _fmt(ci: tuple[float, float, float]) -> str:
@@ -327,7 +331,7 @@ def answer(board: Board) -> str:
         "controller goes below it; n/a where the drive's jitter makes the twin vary in time). Mean [95 % "
         "interval] of the main metric, lower is better.",
         "",
-        RULE,
+        RULE if board.judged else f"{RULE}\n\n{NOT_JUDGED}",
         "",
         "## The answer",
         "",
