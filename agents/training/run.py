@@ -284,8 +284,9 @@ class TrainingRun:
         self.baselines = {sc: best_classical(sc, classical) for sc, classical in by_scenario.items()}
         # and their episode rows, for the paired intervals of selection on several scenarios
         self.baseline_rows = {sc: rows[sc][b.name] for sc, b in self.baselines.items()}
-        self.points = {
-            sc: reference_point(sc, rows[sc], self.groups[sc], self.envs) for sc in cfg.eval_scenarios
+        self.points = {  # selection on several scenarios judges each, the run's own among them
+            sc: reference_point(sc, rows[sc], self.groups[sc], self.envs)
+            for sc in (self.groups if cfg.eval_scenarios else ())
         }
         classical = by_scenario[cfg.scenario]
         self.baseline, self.zero = self.baselines[cfg.scenario], classical[ZERO]
