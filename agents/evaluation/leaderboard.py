@@ -94,16 +94,18 @@ class Judgement:
     variants: dict[Episode, str]
 
 
-def selected_baseline(
-    rows: list[EpisodeResult], scenario: Scenario, fragile: dict[tuple[str, str], str]
-) -> str | None:
-    """The scenario's baseline chosen on its selection episodes: the classical row with the lowest mean
+def selected_baselines(
+    selection: list[EpisodeResult], scenarios: dict[str, Scenario], fragile: dict[tuple[str, str], str]
+) -> dict[str, str | None]:
+    """Each scenario's baseline chosen on its selection episodes: the classical row with the lowest mean
     main metric there among those that are results there (the rule against the point of the same
     episodes) and not fragile; None if none is."""
-    table = summarize(rows, {scenario.name: scenario}).get(scenario.name, [])
-    ok = [r for r in table if classical(r["controller"]) and not r["chatters"]]
-    ok = [r for r in ok if (scenario.name, r["controller"]) not in fragile]
-    return ok[0]["controller"] if ok else None
+    out: dict[str, str | None] = {}
+    for sc, table in summarize(selection, scenarios).items():
+        ok = [r for r in table if classical(r["controller"]) and not r["chatters"]]
+        ok = [r for r in ok if (sc, r["controller"]) not in fragile]
+        out[sc] = ok[0]["controller"] if ok else None
+    return out
 
 
 def summarize(
@@ -111,9 +113,10 @@ def summarize(
 ) -> dict[str, list[dict]]:
     """Per scenario, one row per controller (references included and marked), sorted by the mean main
     metric (see the module docstring). With a judgement, a row fragile on the robustness set is not a
-    result, and the baseline is chosen on the selection episodes (selected_baseline); without one, on
+    result, and the baseline is chosen on the selection episodes (selected_baselines); without one, on
     these results."""
     fragile = judging.fragile(judgement.robustness, judgement.variants, scenarios) if judgement else {}
+    chosen = selected_baselines(judgement.selection, scenarios, fragile) if judgement else {}
     groups: dict[str, dict[str, list[EpisodeResult]]] = defaultdict(dict)
     for r in results:
         groups[r.scenario].setdefault(r.controller, []).append(r)
@@ -144,9 +147,7 @@ def summarize(
             r["chatters"] = "; ".join(filter(None, why))
         best = next((r["controller"] for r in rows if classical(r["controller"]) and not r["chatters"]), None)
         if judgement is not None:
-            picks = [r for r in judgement.selection if r.scenario == sc]
-            chosen = selected_baseline(picks, scenarios[sc], fragile)
-            best = chosen if chosen in by_ctrl else None
+            best = chosen.get(sc) if chosen.get(sc) in by_ctrl else None
         for r in rows:
             r["baseline"] = best
             r["vs_baseline"] = None
