@@ -8,7 +8,7 @@ from dataclasses import replace
 import pytest
 
 from frictiongym.agents.classical.model_feedforward import CascadeModelFF, CascadeSettings
-from frictiongym.agents.evaluation import judging, leaderboard
+from frictiongym.agents.evaluation import judging, leaderboard, stats
 from frictiongym.agents.evaluation.evaluate import EpisodeResult, params_text
 from frictiongym.envs.metrics import METRIC_NAMES
 from frictiongym.envs.plants.params import EpisodeParams
@@ -151,3 +151,15 @@ def test_a_cascade_with_three_times_its_velocity_gain_is_marked_fragile_on_the_e
     row = next(r for r in table["emps_tracking"] if r["controller"] == StiffCascade.name)
     assert "fragile: saturates" in row["chatters"] and "one more control period of delay" in row["chatters"]
     assert row["baseline"] != StiffCascade.name
+
+
+def test_the_reference_point_reads_tracking_limit_then_ideal_and_takes_the_larger_of_each_measure():
+    """One choice of the friction-free design for the leaderboard, tuning and validation selection
+    (stats.point_with): TrackingLimit where it has rows, Ideal at a set-point, the loop alone with
+    neither; a nan measure (no rest) gives way to the other's."""
+    loop = stats.Conduct(0.02, 0.10, math.nan)
+    tracking, ideal = stats.Conduct(0.05, 0.01, 0.3), stats.Conduct(0.01, 0.5, 0.1)
+    both = {"Ideal": ideal, "TrackingLimit": tracking}
+    assert stats.point_with(loop, both) == stats.Conduct(0.05, 0.10, 0.3)
+    assert stats.point_with(loop, {"Ideal": ideal, "PID": tracking}) == stats.Conduct(0.02, 0.5, 0.1)
+    assert stats.point_with(loop, {"PID": tracking}) == loop

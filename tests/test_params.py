@@ -7,7 +7,7 @@ import pytest
 
 from frictiongym.envs.config import ConfigError
 from frictiongym.envs.plants import plant_spec
-from frictiongym.envs.plants.params import EpisodeParams, rejected_draws
+from frictiongym.envs.plants.params import EpisodeParams, check_randomization, rejected_draws
 from frictiongym.envs.plants.sim import PlantSim
 from frictiongym.envs.servo_env import ServoEnv
 
@@ -40,6 +40,17 @@ def test_bad_randomization_ranges_rejected_at_load_naming_the_field(key, rng):
     with pytest.raises(ConfigError) as e:
         plant_spec("kang_robot", {"randomization": {key: rng}})
     assert e.value.field.startswith(f"randomization.{key}")  # the range or its bad end
+
+
+def test_a_remembered_admissible_spec_does_not_pass_a_wider_one():
+    """check_randomization remembers the specs it passed: the preset passes twice, and a range that
+    differs only in one bad end is still built and refused after them."""
+    spec = plant_spec("kang_robot")
+    check_randomization(spec)
+    check_randomization(spec)
+    wide = dataclasses.replace(spec, randomization={**spec.randomization, "sigma0_scale": (0.5, 5.0)})
+    with pytest.raises(ConfigError, match="sigma0_scale"):
+        check_randomization(wide)
 
 
 def test_pinned_parameters_are_applied_and_echoed():

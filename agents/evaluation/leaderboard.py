@@ -62,12 +62,10 @@ def conduct(row: dict) -> stats.Conduct:
 def point_of(rows: list[dict]) -> stats.Conduct | None:
     """A scenario's reference point (stats.reference_point) from its summarized rows: the uncompensated
     loop and TrackingLimit (Ideal where TrackingLimit does not apply); None without the loop."""
-    by = {r["controller"]: r for r in rows}
     loop = next((r for r in rows if r["uncompensated"]), None)
     if loop is None:
         return None
-    limit = by.get("TrackingLimit") or by.get("Ideal")
-    return stats.reference_point(conduct(loop), conduct(limit) if limit is not None else None)
+    return stats.point_with(conduct(loop), {r["controller"]: conduct(r) for r in rows})
 
 
 def chatters(row: dict, point: stats.Conduct | None, scenario: Scenario) -> str:
@@ -374,7 +372,7 @@ def run(
     if judge:
         variants = judging.robustness_episodes(episodes, scenarios)
         picks, robust = judging.selection_episodes(episodes), list(variants)
-        pickers = [*filter(classical, names), *JUDGING_LIMITS]
+        pickers = [*filter(classical, names), *stats.POINT_LIMITS]
         judgement = Judgement(
             _evaluate(pickers, picks, out and out / SELECTION, *backend)[0],
             _evaluate(list(filter(entry, names)), robust, out and out / ROBUSTNESS, *backend)[0],
@@ -390,7 +388,6 @@ def run(
 
 
 SELECTION, ROBUSTNESS = "selection", "robustness"  # a run's sub-folders for its judging episodes' rows
-JUDGING_LIMITS = ("TrackingLimit", "Ideal")  # the selection episodes' reference point besides the loop
 
 
 def _evaluate(

@@ -12,7 +12,7 @@ seed, so the numbers are reproducible.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import astuple, dataclass
 from typing import TYPE_CHECKING
 
@@ -229,6 +229,15 @@ def reference_point(loop: Conduct, limit: Conduct | None) -> Conduct:
         return b if math.isnan(a) else a if math.isnan(b) else max(a, b)
 
     return Conduct(*(larger(a, b) for a, b in zip(astuple(loop), astuple(limit), strict=True)))
+
+
+POINT_LIMITS = ("TrackingLimit", "Ideal")  # the friction-free designs a point reads: the first that has rows
+
+
+def point_with(loop: Conduct, limits: Mapping[str, Conduct]) -> Conduct:
+    """reference_point with the first of POINT_LIMITS among `limits` (TrackingLimit on a tracking task,
+    Ideal at a set-point, where TrackingLimit does not apply; the loop's alone with neither)."""
+    return reference_point(loop, next((limits[n] for n in POINT_LIMITS if n in limits), None))
 
 
 def why_not_result(row: Conduct, point: Conduct, scale: float, band: float) -> list[str]:

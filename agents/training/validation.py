@@ -100,12 +100,11 @@ def reference_point(scenario: str, rows: dict[str, list[dict[str, float]]], epis
     uncompensated loop's rows (among `rows`, classical_rows's) and the friction-free linear design's
     (TrackingLimit, Ideal where it does not apply), run here."""
     sc = load_scenario(scenario)
-    limit = LIMITS["TrackingLimit"]()
-    if not limit.applies_to(envs.scenario(episodes[0])):
-        limit = LIMITS["Ideal"]()
-    return stats.reference_point(
+    here = envs.scenario(episodes[0])
+    limit = next(c for c in (LIMITS[n]() for n in stats.POINT_LIMITS) if c.applies_to(here))
+    return stats.point_with(
         stats.Conduct.of(means(rows[sc.uncompensated])),
-        stats.Conduct.of(means(episode_metrics(limit, episodes, envs))),
+        {limit.name: stats.Conduct.of(means(episode_metrics(limit, episodes, envs)))},
     )
 
 

@@ -75,14 +75,20 @@ CONDUCT_METRICS = ("command_roughness", "saturated_share", "rest_oscillation")
 def reference_points(loop: Trial, episodes: list[Episode], scenarios: dict[str, Scenario]) -> dict:
     """Each scenario's reference point (stats.reference_point): the uncompensated loop's trial and the
     friction-free linear design (TrackingLimit, Ideal where it does not apply) on the same episodes."""
-    limits = evaluate([registry.make("TrackingLimit"), registry.make("Ideal")], episodes, progress=False)
+    rows: list[EpisodeResult] = []
+    for name in stats.POINT_LIMITS:  # each on the scenarios no earlier one applies to
+        done = {r.scenario for r in rows}
+        todo = [e for e in episodes if e.scenario not in done]
+        rows += evaluate([registry.make(name)], todo, progress=False)
     out = {}
     for sc in scenarios:
-        mine = [r for r in limits if r.scenario == sc]
-        name = "TrackingLimit" if any(r.controller == "TrackingLimit" for r in mine) else "Ideal"
-        rows = [r for r in mine if r.controller == name]
-        means = {m: float(np.mean([r.metrics[m] for r in rows])) for m in CONDUCT_METRICS}
-        out[sc] = stats.reference_point(loop.conduct[sc], stats.Conduct.of(means))
+        mine = [r for r in rows if r.scenario == sc]
+        limits = {
+            name: stats.Conduct.of({m: float(np.mean([r.metrics[m] for r in of])) for m in CONDUCT_METRICS})
+            for name in stats.POINT_LIMITS
+            if (of := [r for r in mine if r.controller == name])
+        }
+        out[sc] = stats.point_with(loop.conduct[sc], limits)
     return out
 
 

@@ -326,7 +326,12 @@ def check_randomization(spec: PlantSpec) -> None:
     """Reject randomization ranges some draw of which fails the physical or numerics checks: every corner
     of the ranges (all low/high combinations of the keys the checks depend on; the checks are monotone in
     each key) is built and validated, so no seed can be rejected at reset. The error names the key alone
-    when one key's range fails by itself, else the keys whose corner fails."""
+    when one key's range fails by itself, else the keys whose corner fails. A spec that passed is
+    remembered by its repr (a PlantSpec holds plain numbers, tuples and dicts), so loading the same
+    scenario again does not build its corners again."""
+    memo = repr(spec)
+    if memo in _ADMISSIBLE:
+        return
     keys = [k for k in spec.randomization if k not in ("noise_scale", "delay_s", "jitter_s")]
 
     def fails(values: dict[str, float]) -> str | None:
@@ -346,6 +351,10 @@ def check_randomization(spec: PlantSpec) -> None:
             raise ConfigError(
                 "randomization", f"the draw at the corner {values} fails a check ({why}); narrow the ranges"
             )
+    _ADMISSIBLE.add(memo)
+
+
+_ADMISSIBLE: set[str] = set()  # reprs of the specs check_randomization passed, in this process
 
 
 def rejected_draws(spec: PlantSpec, seeds: Iterable[int]) -> list[tuple[int, str]]:
