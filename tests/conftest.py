@@ -8,6 +8,9 @@ scripts/ as a module, for its functions), `bit_flips` (a sealed file's single-bi
 test_model_trust and test_runtime)."""
 
 import importlib.util
+import os
+import shutil
+import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 from types import ModuleType
@@ -36,9 +39,21 @@ def load_script(name: str) -> ModuleType:
 
 
 def pytest_configure(config):
+    # the friction-free optimum's programs (agents/evaluation/optimum.py) are kept in a folder of the
+    # test session's own, shared by its workers and the interpreters its tests start, never the user's
+    if "FRICTIONGYM_CACHE" not in os.environ:
+        os.environ["FRICTIONGYM_CACHE"] = _MADE[0] = tempfile.mkdtemp(prefix="frictiongym-test-cache-")
     config.addinivalue_line(
         "markers", "slow: slow for the reason beside its mark (deselect: -m 'not slow')"
     )
+
+
+def pytest_unconfigure(config):
+    if _MADE[0]:  # the process that made the session's cache folder removes it
+        shutil.rmtree(_MADE[0], ignore_errors=True)
+
+
+_MADE: list[str] = [""]
 
 
 def lockstep(scenario: str, kw: dict, keys: tuple[str, ...], copy_at: int, seed: int = 20) -> list:

@@ -87,6 +87,31 @@ def test_at_a_set_point_the_optimum_is_zero_and_jitter_is_refused():
         opt.optimum(Episode("kang_regulation_hard", 5000, True))
 
 
+def test_a_solved_program_is_read_back_bit_for_bit_and_a_damaged_entry_is_solved_again(tmp_path, monkeypatch):
+    """The cache (FRICTIONGYM_CACHE) keeps each episode's program: a second computation of the episode
+    solves nothing (linprog is not called) and gives the same commands and value, bit for bit; an entry
+    that is not an archive of the right arrays is solved again and replaced; "off" keeps nothing."""
+    monkeypatch.setenv(opt.CACHE_VARIABLE, str(tmp_path))
+    episode = Episode("m220_reversal_tracking", 5000, True)  # its inverse is unstable: a program runs
+    first = opt.optimum(episode)
+    (entry,) = (tmp_path / "optimum").iterdir()
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("a cached program was solved again")
+
+    with monkeypatch.context() as m:
+        m.setattr(opt, "linprog", refuse)
+        again = opt.optimum(episode)
+    assert np.array_equal(again.actions, first.actions) and again.value == first.value
+    assert again.objective == first.objective
+    entry.write_bytes(b"not an archive")
+    damaged = opt.optimum(episode)
+    assert np.array_equal(damaged.actions, first.actions) and damaged.value == first.value
+    assert np.load(entry, allow_pickle=False)["u"].shape == first.actions.shape  # replaced
+    monkeypatch.setenv(opt.CACHE_VARIABLE, "off")
+    assert opt.cache_dir() is None
+
+
 def below(scenario: str, seed: int) -> list[tuple[str, float, float]]:
     """(controller, its main metric on the twin, the optimum) for every registry controller that applies
     to the episode and goes below the optimum on its friction-free twin."""

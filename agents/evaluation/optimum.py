@@ -21,16 +21,28 @@ How it is computed, for one episode:
    to `AGREE` of the error scale, else the realisation was not the twin and the episode is an error.
 
 A tracking output of a speed (the flexible servo's tachometers) is as linear as a position.
+
+**Cached per episode, across runs**: step 2's program is a pure function of what the plays measured
+(d = r - y0, g, the metric's weights) and of this module's code, so its answer (u, the program's
+minimum, the metric through g) is kept on disk under the SHA-256 of those inputs, this file's bytes and
+scipy's version (HiGHS comes with it): `cache_dir()`, FRICTIONGYM_CACHE or the user's cache folder
+(`off`: none). A rerun of a leaderboard plays the twin again and reads the rest; an entry that does not
+load as the arrays it should be (no pickle is ever read) is solved again and replaced.
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
 import time
+import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
+import scipy
 import scipy.sparse as sp
 from scipy.optimize import linprog
 from scipy.signal import fftconvolve
@@ -38,6 +50,7 @@ from scipy.signal import fftconvolve
 from frictiongym.agents.base import Controller, EpisodeContext
 from frictiongym.agents.evaluation.evaluate import EnvCache, EpisodeResult, run_episode
 from frictiongym.envs.metrics import FINAL_FRACTION, reversal_half_window, reversal_windows
+from frictiongym.envs.records import atomic_write
 from frictiongym.envs.scenario import Scenario
 from frictiongym.envs.suites import Episode
 
@@ -230,6 +243,54 @@ def solve(
     return u, objective, value
 
 
+CACHE_VARIABLE = "FRICTIONGYM_CACHE"  # the folder the solved programs are kept in; "off": not kept
+
+
+def cache_dir() -> Path | None:
+    """Where solved programs are kept: $FRICTIONGYM_CACHE/optimum, else $XDG_CACHE_HOME (or ~/.cache)
+    /frictiongym/optimum; None when FRICTIONGYM_CACHE is "off"."""
+    root = os.environ.get(CACHE_VARIABLE, "")
+    if root == "off":
+        return None
+    if root:
+        return Path(root) / "optimum"
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "frictiongym" / "optimum"
+
+
+def program_key(d: np.ndarray, g: np.ndarray, w: np.ndarray, peak: bool) -> str:
+    """The SHA-256 of everything `solve` reads: its inputs' float64 bytes, this module's code and scipy's
+    version."""
+    h = hashlib.sha256(Path(__file__).read_bytes())
+    h.update(scipy.__version__.encode())
+    for a in (d, g, w):
+        a = np.ascontiguousarray(a, dtype=np.float64)
+        h.update(str(a.shape).encode() + a.tobytes())
+    h.update(b"peak" if peak else b"sum")
+    return h.hexdigest()
+
+
+def cached_solve(d: np.ndarray, g: np.ndarray, w: np.ndarray, peak: bool, model: tuple) -> tuple:
+    """`solve`'s answer, read from the cache where it holds this program's, else solved and kept."""
+    folder = cache_dir()
+    if folder is None:
+        return solve(d, g, w, peak, model)
+    path = folder / f"{program_key(d, g, w, peak)}.npz"
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            u, objective, value = f["u"], float(f["objective"]), float(f["value"])
+        if u.shape == d.shape and u.dtype == np.float64 and np.all(np.abs(u) <= 1.0):
+            return u, objective, value
+    except (OSError, EOFError, ValueError, KeyError, TypeError, zipfile.BadZipFile):
+        pass  # not kept yet, or not what it should be: solved again below and replaced
+    u, objective, value = solve(d, g, w, peak, model)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        atomic_write(path, lambda p: np.savez_compressed(p, u=u, objective=objective, value=value))
+    except OSError:
+        pass  # a read-only or full cache: the answer is the same, only not kept
+    return u, objective, value
+
+
 def optimum(episode: Episode, envs: EnvCache | None = None) -> EpisodeOptimum:
     """The friction-free optimum of one episode (module docstring)."""
     envs = envs or EnvCache()
@@ -253,7 +314,7 @@ def optimum(episode: Episode, envs: EnvCache | None = None) -> EpisodeOptimum:
     g = play(np.eye(1, N)[0])[0] - y0
     w, peak = weights(sc.main_metric, t, r, sc.control_period)
     model = realisation(g)
-    u, objective, through_g = solve(r - y0, g, w, peak, model)
+    u, objective, through_g = cached_solve(r - y0, g, w, peak, model)
     value = play(u)[1].metrics[sc.main_metric]
     tol = AGREE * float(np.max(np.abs(r - y0))) * (1.0 if peak else float(np.sum(w)))
     if abs(value - through_g) > tol:  # the twin is not its pulse response's convolution: not LTI
