@@ -39,6 +39,20 @@ def test_the_estimation_positions_are_on_the_encoder_grid_of_50_nm(estimation):
     assert np.abs(np.round(counts)).min() == 0  # and it does rest on one count
 
 
+def test_the_position_noise_above_the_grid_is_a_fraction_of_a_count(estimation):
+    """The measured noise floor behind emps.yaml's noise_std_m = 0: what a 7-point cubic Savitzky-Golay
+    fit leaves of qm (its high-frequency part; the motion itself is smooth at 1 kHz) is 1.7e-8 m rms,
+    about the 5e-8 m grid's own rounding (q/sqrt(12) = 1.44e-8 m): the noise beyond quantisation is at
+    most sqrt(1.72² - 1.44²) ≈ 0.9e-8 m, a fifth of a count."""
+    from scipy.signal import savgol_filter
+
+    q = estimation.position
+    rest = (q - savgol_filter(q, 7, 3))[50:-50]
+    rounding = 5e-8 / np.sqrt(12)
+    assert rounding < rest.std() < 1.25 * rounding
+    assert np.sqrt(rest.std() ** 2 - rounding**2) < 0.2 * 5e-8
+
+
 def test_the_logged_command_is_eq6_plus_the_pulses_in_volts(estimation, validation):
     # ν = kp·kv·(qg - qm) - kv·q̇m with the 2-tap FIR velocity (§2.2); the pulses jump the logged ν by 5
     for log, tol in ((estimation, 0.02), (validation, 0.15)):  # V; the validation qm is processed (README)
