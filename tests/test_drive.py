@@ -587,6 +587,7 @@ def test_a_set_point_and_a_tachometer_loop_run_through_on_the_virtual_drive(tmp_
     assert loop["stop"] is None and loop["periods"] == drive["periods"] == round(1.0 / h), loop
 
 
+@pytest.mark.slow  # three drives, each a fresh interpreter, and the CLI's own
 def test_rehearsals_in_a_row_each_report_their_split_of_the_period(lab_pd, tmp_path, capsys):
     """frictiongym rehearse: the drive in a process of its own, runs one after another, each with its
     figures; the compute per period is the controller's step, the send call and the loop's own overhead,
