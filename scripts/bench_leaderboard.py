@@ -11,7 +11,8 @@ step: what no evaluation code can go below; without and with the models), then t
 run and its ratio to its floor (targets: the classical and reference rows at most 1.3x, the whole
 default leaderboard with the models at most 1.4x), the speed-ups, the Ray backend's overhead against the
 local pool (pool speed-up >= 1.7, Ray at most 15 % slower than the pool) and whether every
-episodes.csv of the same controllers is byte-identical.
+episodes.csv of the same controllers is byte-identical. The friction-free optimum's cache is off
+(FRICTIONGYM_CACHE=off): every run solves the programs a first run solves, so no run reads another's.
 """
 
 from __future__ import annotations
@@ -94,6 +95,7 @@ def main() -> None:
     ap.add_argument("--models", nargs="+", default=[], help="also the suite with these saved-model folders")
     ap.add_argument("--no-serial", dest="serial", action="store_false", help="skip the 1-worker run")
     args = ap.parse_args()
+    os.environ["FRICTIONGYM_CACHE"] = "off"  # inherited by the workers: no run reads another's programs
     from frictiongym.agents.evaluation import engine
 
     floor = physics_floor(args.workers)

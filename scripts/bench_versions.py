@@ -6,7 +6,8 @@ versions' `frictiongym leaderboard` with the same arguments, in turn, each in a 
 
 The other commit is checked out into a temporary git worktree and imported from there (its own configs
 and committed models: a relative path in the arguments is each version's own); the worktree is removed
-at the end. Run it on a quiet machine: the two versions share it in turn, never at once.
+at the end. The friction-free optimum's cache is off (FRICTIONGYM_CACHE=off): each run pays what a first
+run pays. Run it on a quiet machine: the two versions share it in turn, never at once.
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ def checkout(commit: str, where: Path) -> tuple[Path, Path]:
 
 def timed(args: list[str], cwd: Path, out: Path, pythonpath: Path | None) -> float:
     """Wall time (s) of `frictiongym leaderboard *args --out out` run from cwd."""
-    env = dict(os.environ)
+    env = {**os.environ, "FRICTIONGYM_CACHE": "off"}  # no version reads programs another run solved
     if pythonpath is not None:
         env["PYTHONPATH"] = str(pythonpath)
     cmd = [sys.executable, "-m", "frictiongym.scripts.cli", "leaderboard", *args, "--out", str(out)]
