@@ -52,9 +52,9 @@ def test_the_judging_episodes_come_from_the_validation_range_and_never_from_the_
     picks = judging.selection_episodes(episodes)
     assert [e.seed for e in picks] == list(range(first, first + judging.SELECTION_EPISODES))
     robust = judging.robustness_episodes(episodes, {"kang_regulation": load_scenario("kang_regulation")})
-    assert len(robust) == 2 * judging.ROBUSTNESS_SEEDS  # delay and inertia on each seed
+    assert len(robust) == 3 * judging.ROBUSTNESS_SEEDS  # as drawn, delay and inertia on each seed
     assert {e.seed for e in robust} == set(range(first, first + judging.ROBUSTNESS_SEEDS))
-    assert all(e.params for e in robust)
+    assert all(bool(e.params) == (v != judging.NOMINAL) for e, v in robust.items())
 
 
 def result(name: str, episode: Episode, main: float, saturated: float = 0.0, diverged: bool = False):
@@ -68,7 +68,8 @@ def result(name: str, episode: Episode, main: float, saturated: float = 0.0, div
 def test_a_row_that_diverges_saturates_or_falls_behind_the_loop_on_a_variant_is_fragile():
     """Against the uncompensated loop (PD on Kang's regulation, main metric final_error) on the same
     variant's episodes: diverging, saturating beyond 1.5x the loop's share plus 2 %, or a mean main metric
-    above the loop's each make a row fragile, named with the variant; a row within all three is not."""
+    above the loop's where it is below it as drawn each make a row fragile, named with the variant; a row
+    within all three is not, nor is one behind the loop as drawn as well ("weak")."""
     sc = load_scenario("kang_regulation")
     robust = judging.robustness_episodes([Episode(sc.name, 0, True)], {sc.name: sc})
     rows = []
@@ -78,6 +79,7 @@ def test_a_row_that_diverges_saturates_or_falls_behind_the_loop_on_a_variant_is_
         rows.append(result("diverging", e, 0.1, diverged=variant == "delay"))
         rows.append(result("saturating", e, 0.1, saturated=0.05 if variant == "inertia" else 0.0))
         rows.append(result("behind", e, 1.1 if variant == "delay" else 0.5))
+        rows.append(result("weak", e, 1.2))
     got = judging.fragile(rows, robust, {sc.name: sc})
     assert set(got) == {(sc.name, n) for n in ("diverging", "saturating", "behind")}
     assert got[sc.name, "diverging"] == "fragile: diverges with one more control period of delay"

@@ -7,10 +7,11 @@
   selection reads them.
 - **Robustness**: the first ROBUSTNESS_SEEDS of those episodes, each perturbed as a real loop or drive
   would perturb it (VARIANTS: one more control period of actuation delay, twice the sensor noise, the
-  inertia INERTIA_MARGIN heavier, the resonance SPRING_MARGIN softer), run by every entry and the
-  scenario's uncompensated loop. A row that diverges there, saturates beyond the loop's share or falls
-  behind the loop's main metric on a variant is fragile: not a result, as a servo engineer rejects a design
-  without margins.
+  inertia INERTIA_MARGIN heavier, the resonance SPRING_MARGIN softer) and as drawn (NOMINAL), run by
+  every entry and the scenario's uncompensated loop. A row that diverges there, saturates beyond the
+  loop's share or falls behind the loop's main metric on a variant where it is not behind it as drawn is
+  fragile: not a result, as a servo engineer rejects a design without margins. (A row behind the loop as
+  drawn is a weak row, not a fragile one: it keeps no lead a perturbation could take.)
 
 The variants pin values of the episode's own draw (envs/plants/params.py `EpisodeParams.draw_values`), so
 each is the same episode with one thing changed.
@@ -34,6 +35,7 @@ ROBUSTNESS_SEEDS = 3  # of them, the episodes each robustness variant perturbs
 NOISE_FACTOR = 2.0  # x the episode's drawn noise scale
 INERTIA_MARGIN = 0.2  # the inertia this much heavier (a load of a fifth of the drive's own)
 SPRING_MARGIN = 0.2  # the spring this much softer: the resonance sqrt(0.8) = 0.89x as high
+NOMINAL = "nominal"  # the robustness seeds as drawn: what each variant's loss of lead is read against
 VARIANTS = {
     "delay": "one more control period of delay",
     "noise": f"{NOISE_FACTOR:g}x the sensor noise",
@@ -70,11 +72,13 @@ def variants(scenario: Scenario, seed: int, randomize: bool) -> dict[str, dict[s
 
 
 def robustness_episodes(episodes: list[Episode], scenarios: dict[str, Scenario]) -> dict[Episode, str]:
-    """The robustness set of each scenario of `episodes`: {episode: its variant}, scenario-major."""
+    """The robustness set of each scenario of `episodes`: {episode: its variant, or NOMINAL for the seed
+    as drawn}, scenario-major."""
     flags = {e.scenario: e.randomize for e in episodes}
     out = {}
     for sc, flag in flags.items():
         for seed in validation_seeds(ROBUSTNESS_SEEDS):
+            out[Episode(sc, seed, flag)] = NOMINAL
             for name, pinned in variants(scenarios[sc], seed, flag).items():
                 out[Episode(sc, seed, flag, tuple(sorted(pinned.items())))] = name
     return out
@@ -85,7 +89,8 @@ def fragile(
 ) -> dict[tuple[str, str], str]:
     """{(scenario, controller): why it is fragile} for the rows that are ("" never appears): on some
     variant it diverges, saturates beyond SATURATION_RATIO times the uncompensated loop's share plus
-    SATURATION_FLOOR, or its mean main metric is above the loop's on the same episodes."""
+    SATURATION_FLOOR, or its mean main metric is above the loop's on the same episodes where, as drawn
+    (NOMINAL), it is not."""
     by_text = {(e.scenario, e.seed, params_text(e)): v for e, v in robustness.items()}
     rows: dict[tuple[str, str, str], list[EpisodeResult]] = defaultdict(list)
     for r in results:
@@ -94,14 +99,16 @@ def fragile(
     for (sc, name, variant), mine in rows.items():
         s = scenarios[sc]
         loop = rows.get((sc, s.uncompensated, variant))
-        if name == s.uncompensated or loop is None:
+        if name == s.uncompensated or loop is None or variant == NOMINAL:
             continue
         what = VARIANTS[variant]
         if any(r.diverged for r in mine):
             out[sc, name].append(f"diverges with {what}")
             continue
         main = _mean(mine, s.main_metric)
-        if main > _mean(loop, s.main_metric):
+        drawn = _mean(rows[sc, name, NOMINAL], s.main_metric)
+        ahead = drawn <= _mean(rows[sc, s.uncompensated, NOMINAL], s.main_metric)  # as drawn
+        if ahead and main > _mean(loop, s.main_metric):
             out[sc, name].append(f"behind the uncompensated loop with {what}")
         sat, sat_loop = _mean(mine, "saturated_share"), _mean(loop, "saturated_share")
         if sat > stats.SATURATION_RATIO * sat_loop + stats.SATURATION_FLOOR:
