@@ -19,7 +19,7 @@ class SensorArrays:
     encoder: np.ndarray  # bool: encoder (else tachometer)
     resolution: np.ndarray  # rad (encoders)
     gain: np.ndarray  # V per rad/s (tachometers)
-    ripple_n: np.ndarray  # ripple periods per rad
+    ripple_n: np.ndarray  # ripple periods per revolution: sin(n·θ), θ in rad
     ripple_amp: np.ndarray  # V
     noise_std: np.ndarray  # rad or V
 
@@ -31,7 +31,7 @@ class SensorArrays:
             encoder=np.array([x.kind == "encoder" for x in s]),
             resolution=np.array([x.resolution if x.kind == "encoder" else 1.0 for x in s]),
             gain=np.array([x.gain for x in s]),
-            ripple_n=np.array([x.ripple_periods_per_rad for x in s]),
+            ripple_n=np.array([x.ripple_periods_per_rev for x in s]),
             ripple_amp=np.array([x.ripple_amplitude for x in s]),
             noise_std=np.array([x.noise_std for x in s]),
         )

@@ -88,6 +88,24 @@ def test_encoder_quantisation_and_seeded_noise():
     assert all(np.allclose(np.round(m / res), m / res) for m in a)
 
 
+def test_tacho_ripple_has_ten_periods_per_revolution_as_wallenborg_measured():
+    """Wallenborg 1987 §7.2: the ripple's frequency is 100 rad/s at ω1 = 10 rad/s, ten periods per
+    revolution: with an amplitude set and the shaft's speed zero, the reading over one revolution is
+    A·sin(10·θ), crossing zero 20 times."""
+    from frictiongym.envs.plants import plant_spec
+    from frictiongym.envs.sensors import SensorArrays
+
+    spec = plant_spec("flexible_servo", {"sensors": {"tacho1": {"ripple_amplitude_v": 0.05}}})
+    sensors = SensorArrays.of(spec, tuple(range(len(spec.joints))))
+    i = next(k for k, x in enumerate(spec.sensors) if x.name == "tacho1")
+    theta = np.linspace(0.0, 2 * np.pi, 2001)[:-1]
+    qpos = np.zeros((len(theta), len(spec.joints)))
+    qpos[:, sensors.dofs[i]] = theta
+    ripple = sensors.measure(qpos, np.zeros_like(qpos), np.zeros((len(theta), len(spec.sensors))))[:, i]
+    assert np.allclose(ripple, 0.05 * np.sin(10 * theta))
+    assert np.count_nonzero(np.diff(np.sign(ripple[1:])) != 0) == 19  # 20 crossings, the first at θ = 0
+
+
 def test_runtime_parameters_change_the_physics_without_recompiling():
     sim = PlantSim("kang_robot", friction_model="none")
     p = EpisodeParams.nominal(sim.spec)

@@ -26,7 +26,7 @@ MAX_SIGMA1_NM_S_PER_RAD = 10.0  # 400x the critically damped 2.45e-2 of shaft 2
 GAIN_RANGE_NM_PER_A = (1e-4, 10.0)  # k_m = 0.1 N·m/A (§3.1)
 GAIN_RANGE_A_PER_V = (1e-4, 10.0)  # k_i = 0.25 A/V (§3.1)
 TACHO_GAIN_RANGE_V_PER_RAD_S = (1e-4, 10.0)  # k_ω = 0.1 V/(rad/s) (§3.1)
-MAX_RIPPLE_PERIODS_PER_RAD = 1e3  # commutator ripple: tens of segments per turn, not thousands per rad
+MAX_RIPPLE_PERIODS_PER_REV = 1e3  # commutator ripple: tens of segments per turn, not thousands
 LIMIT_RANGE_V = (1e-3, 100.0)  # ±10 V signal levels (§7.1)
 # identification holds (agents/lab/experiments.py): the references are 1 V = 10 rad/s (§4), 0.5-16 rad/s here
 IDENTIFICATION_SPEEDS_RAD_S = (0.5, 16.0)
@@ -66,7 +66,7 @@ def build(cfg: Node, friction_model: str) -> PlantSpec:
                 t.choice("joint", ["shaft1", "shaft2"]),
                 gain=t.number("gain_v_per_rad_s", *TACHO_GAIN_RANGE_V_PER_RAD_S),
                 noise_std=t.nonneg("noise_std_v", 10.0),
-                ripple_periods_per_rad=t.nonneg("ripple_periods_per_rad", MAX_RIPPLE_PERIODS_PER_RAD),
+                ripple_periods_per_rev=t.nonneg("ripple_periods_per_rev", MAX_RIPPLE_PERIODS_PER_REV),
                 ripple_amplitude=t.nonneg("ripple_amplitude_v", 10.0),
             )
         )

@@ -73,7 +73,7 @@ class SensorSpec:
     resolution: float = 0.0
     gain: float = 1.0
     noise_std: float = 0.0
-    ripple_periods_per_rad: float = 0.0
+    ripple_periods_per_rev: float = 0.0
     ripple_amplitude: float = 0.0
 
 
