@@ -95,8 +95,9 @@ def main() -> None:
     ap.add_argument("--models", nargs="+", default=[], help="also the suite with these saved-model folders")
     ap.add_argument("--no-serial", dest="serial", action="store_false", help="skip the 1-worker run")
     args = ap.parse_args()
-    os.environ["FRICTIONGYM_CACHE"] = "off"  # inherited by the workers: no run reads another's programs
-    from frictiongym.agents.evaluation import engine
+    from frictiongym.agents.evaluation import engine, optimum
+
+    os.environ[optimum.CACHE_VARIABLE] = optimum.CACHE_OFF  # inherited by the workers: no run reads another's
 
     floor = physics_floor(args.workers)
     floor_models = physics_floor(args.workers, tuple(args.models)) if args.models else 0.0

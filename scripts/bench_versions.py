@@ -42,7 +42,10 @@ def checkout(commit: str, where: Path) -> tuple[Path, Path]:
 
 def timed(args: list[str], cwd: Path, out: Path, pythonpath: Path | None) -> float:
     """Wall time (s) of `frictiongym leaderboard *args --out out` run from cwd."""
-    env = {**os.environ, "FRICTIONGYM_CACHE": "off"}  # no version reads programs another run solved
+    # here, not at the top: --help imports no MuJoCo (the optimum's module imports the engine's)
+    from frictiongym.agents.evaluation.optimum import CACHE_OFF, CACHE_VARIABLE
+
+    env = {**os.environ, CACHE_VARIABLE: CACHE_OFF}  # no version reads programs another run solved
     if pythonpath is not None:
         env["PYTHONPATH"] = str(pythonpath)
     cmd = [sys.executable, "-m", "frictiongym.scripts.cli", "leaderboard", *args, "--out", str(out)]

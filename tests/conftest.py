@@ -41,8 +41,10 @@ def load_script(name: str) -> ModuleType:
 def pytest_configure(config):
     # the friction-free optimum's programs (agents/evaluation/optimum.py) are kept in a folder of the
     # test session's own, shared by its workers and the interpreters its tests start, never the user's
-    if "FRICTIONGYM_CACHE" not in os.environ:
-        os.environ["FRICTIONGYM_CACHE"] = _MADE[0] = tempfile.mkdtemp(prefix="frictiongym-test-cache-")
+    from frictiongym.agents.evaluation.optimum import CACHE_VARIABLE
+
+    if CACHE_VARIABLE not in os.environ:
+        os.environ[CACHE_VARIABLE] = _MADE[0] = tempfile.mkdtemp(prefix="frictiongym-test-cache-")
     config.addinivalue_line(
         "markers", "slow: slow for the reason beside its mark (deselect: -m 'not slow')"
     )

@@ -108,7 +108,7 @@ def test_a_solved_program_is_read_back_bit_for_bit_and_a_damaged_entry_is_solved
     damaged = opt.optimum(episode)
     assert np.array_equal(damaged.actions, first.actions) and damaged.value == first.value
     assert np.load(entry, allow_pickle=False)["u"].shape == first.actions.shape  # replaced
-    monkeypatch.setenv(opt.CACHE_VARIABLE, "off")
+    monkeypatch.setenv(opt.CACHE_VARIABLE, opt.CACHE_OFF)
     assert opt.cache_dir() is None
 
 

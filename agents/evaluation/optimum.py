@@ -38,6 +38,7 @@ import time
 import zipfile
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cache
 from pathlib import Path
 from typing import ClassVar
 
@@ -243,24 +244,31 @@ def solve(
     return u, objective, value
 
 
-CACHE_VARIABLE = "FRICTIONGYM_CACHE"  # the folder the solved programs are kept in; "off": not kept
+CACHE_VARIABLE = "FRICTIONGYM_CACHE"  # the folder the solved programs are kept in; CACHE_OFF: not kept
+CACHE_OFF = "off"
 
 
 def cache_dir() -> Path | None:
     """Where solved programs are kept: $FRICTIONGYM_CACHE/optimum, else $XDG_CACHE_HOME (or ~/.cache)
-    /frictiongym/optimum; None when FRICTIONGYM_CACHE is "off"."""
+    /frictiongym/optimum; None when FRICTIONGYM_CACHE is CACHE_OFF."""
     root = os.environ.get(CACHE_VARIABLE, "")
-    if root == "off":
+    if root == CACHE_OFF:
         return None
     if root:
         return Path(root) / "optimum"
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "frictiongym" / "optimum"
 
 
+@cache
+def _code_digest() -> bytes:
+    """The SHA-256 of this module's code, read once per process."""
+    return hashlib.sha256(Path(__file__).read_bytes()).digest()
+
+
 def program_key(d: np.ndarray, g: np.ndarray, w: np.ndarray, peak: bool) -> str:
     """The SHA-256 of everything `solve` reads: its inputs' float64 bytes, this module's code and scipy's
     version."""
-    h = hashlib.sha256(Path(__file__).read_bytes())
+    h = hashlib.sha256(_code_digest())
     h.update(scipy.__version__.encode())
     for a in (d, g, w):
         a = np.ascontiguousarray(a, dtype=np.float64)
